@@ -1,0 +1,62 @@
+# Compiler flags of the two build types. They are set on dktlbm's own targets (not in
+# CMAKE_Fortran_FLAGS_<CONFIG>) so that what is compiled and what the program reports in
+# dkt_build_flags are the same list: DKT_FORTRAN_FLAGS.
+#
+#   Release: -O3 (+ -march=native when DKTLBM_NATIVE is ON)
+#   Debug:   -g -O0, all warnings, run-time checks (all but the array-temporary notes), traps on
+#            invalid/zero/overflow, backtraces
+
+set(_dkt_release "")
+set(_dkt_debug "")
+if(CMAKE_Fortran_COMPILER_ID STREQUAL "GNU")
+  set(_dkt_release -O3)
+  if(DKTLBM_NATIVE)
+    list(APPEND _dkt_release -march=native)
+  endif()
+  # no-array-temps: -fcheck=all would print a run-time line at every call that makes an
+  # array temporary (a speed hint, not an error), burying the output of a debug run.
+  set(_dkt_debug -g -O0 -Wall -Wextra -fcheck=all,no-array-temps
+    -ffpe-trap=invalid,zero,overflow -fbacktrace)
+elseif(CMAKE_Fortran_COMPILER_ID MATCHES "^Intel")
+  set(_dkt_release -O3)
+  if(DKTLBM_NATIVE)
+    list(APPEND _dkt_release -xHost)
+  endif()
+  set(_dkt_debug -g -O0 -warn all -check all -fpe0 -traceback)
+else()
+  message(WARNING "dktlbm: no tuned flags for ${CMAKE_Fortran_COMPILER_ID}; using -O3 / -g -O0")
+  set(_dkt_release -O3)
+  set(_dkt_debug -g -O0)
+endif()
+
+# CMake's own defaults would add a second optimisation level (-O3, -g) to dktlbm's own list;
+# they are emptied while they are the defaults, and flags a user sets there are kept (and
+# reported in dkt_build_flags).
+foreach(_dkt_type IN ITEMS RELEASE DEBUG)
+  string(STRIP "${CMAKE_Fortran_FLAGS_${_dkt_type}}" _dkt_now)
+  string(STRIP "${CMAKE_Fortran_FLAGS_${_dkt_type}_INIT}" _dkt_init)
+  if(_dkt_now STREQUAL _dkt_init AND NOT _dkt_now STREQUAL "")
+    set(CMAKE_Fortran_FLAGS_${_dkt_type} "" CACHE STRING
+      "Extra ${_dkt_type} flags (dktlbm sets its own, see cmake/DktCompilerFlags.cmake)" FORCE)
+  endif()
+endforeach()
+
+string(TOUPPER "${CMAKE_BUILD_TYPE}" _dkt_config)
+if(_dkt_config STREQUAL "DEBUG")
+  set(_dkt_type_flags ${_dkt_debug})
+elseif(_dkt_config STREQUAL "RELEASE" OR _dkt_config STREQUAL "")
+  set(_dkt_type_flags ${_dkt_release})
+else()
+  message(FATAL_ERROR "dktlbm: CMAKE_BUILD_TYPE must be Release or Debug, not '${CMAKE_BUILD_TYPE}'")
+endif()
+
+# Everything the compiler sees for dktlbm's sources, as one string (for dkt_build_flags).
+set(DKT_FORTRAN_FLAGS "${CMAKE_Fortran_FLAGS} ${CMAKE_Fortran_FLAGS_${_dkt_config}}")
+list(JOIN _dkt_type_flags " " _dkt_type_string)
+string(REGEX REPLACE " +" " " DKT_FORTRAN_FLAGS "${DKT_FORTRAN_FLAGS} ${_dkt_type_string}")
+string(STRIP "${DKT_FORTRAN_FLAGS}" DKT_FORTRAN_FLAGS)
+
+#> Give a dktlbm target (library, program or test) the flags of the build type.
+function(dkt_set_fortran_flags target)
+  target_compile_options(${target} PRIVATE ${_dkt_type_flags})
+endfunction()

@@ -1,0 +1,578 @@
+!> The input of dktlbm: namelist groups in physical units (cm, g, s), their defaults, the key
+!> registry, validation in one routine, the conversion to lattice units, and the command line.
+!>
+!> Defaults are written in one place only, the type initialisers below. The registry built by
+!> `build_registry` adds unit, range and meaning to each component; parsing, range checks,
+!> `--print-defaults` and input/README.md (through tests/test_input_readme.py) all come from it.
+module dkt_config
+  use dkt_kinds, only: wp, cs2
+  use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
+                          add_string, add_choice, find_key, check_key, value_text, allowed_text, &
+                          origin_of, fmt_real, itoa
+  use dkt_namelist, only: parse_namelist, apply_override
+  implicit none
+  private
+  public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
+  public :: derive_lattice, config_to_namelist, config_output_dir, print_help
+
+  !> &domain: the channel.
+  type, public :: domain_cfg_t
+    real(wp) :: width = 2.0_wp            !! cm, channel width (x)
+    real(wp) :: height = 5.0_wp           !! cm, channel length (y)
+    character(len=16) :: sides = 'wall'   !! boundary at x = 0 and x = width
+    character(len=16) :: lower = 'wall'   !! boundary at the y = 0 end
+    character(len=16) :: upper = 'wall'   !! boundary at the y = height end
+  end type domain_cfg_t
+
+  !> &fluid: the Newtonian fluid.
+  type, public :: fluid_cfg_t
+    real(wp) :: density = 1.0_wp          !! g/cm^3
+    real(wp) :: viscosity = 0.01_wp       !! g/(cm s), dynamic viscosity mu
+    real(wp) :: body_force(2) = 0.0_wp    !! cm/s^2, uniform acceleration on the fluid
+  end type fluid_cfg_t
+
+  !> &lbm: the numerical method.
+  type, public :: lbm_cfg_t
+    real(wp) :: dx = 0.004_wp             !! cm, lattice spacing
+    real(wp) :: tau = 0.65_wp             !! relaxation time, in time steps
+    character(len=8) :: collision = 'mrt' !! 'mrt' (E1) or 'bgk' (E4)
+    real(wp) :: s_e = 1.1_wp              !! MRT energy rate (E3)
+    real(wp) :: s_eps = 1.25_wp           !! MRT energy-square rate (E3)
+    real(wp) :: s_q = 0.0_wp              !! MRT heat-flux rate; 0 = the E3 rule
+  end type lbm_cfg_t
+
+  !> &inlet: a 'velocity' end of the channel.
+  type, public :: inlet_cfg_t
+    real(wp) :: velocity = 0.0_wp             !! cm/s, signed y-velocity (centreline if parabolic)
+    character(len=16) :: profile = 'parabolic' !! 'uniform' or 'parabolic'
+    real(wp) :: ramp_time = 0.0_wp            !! s, smooth ramp-up time of the inlet velocity
+  end type inlet_cfg_t
+
+  !> &initial: the flow at t = 0.
+  type, public :: initial_cfg_t
+    character(len=16) :: flow = 'rest'    !! 'rest' or 'taylor_green'
+    real(wp) :: velocity = 0.0_wp         !! cm/s, amplitude of the initial flow
+  end type initial_cfg_t
+
+  !> &run: length of the run and its guards.
+  type, public :: run_cfg_t
+    real(wp) :: t_end = 1.0_wp            !! s, simulated time (ignored when steps > 0)
+    integer :: steps = 0                  !! time steps; 0 = from t_end
+    real(wp) :: t_ref = 0.135526_wp       !! s, t* = t/t_ref; sqrt(18 cm / 980 cm/s^2) (SPEC 6)
+    integer :: progress_every = 1000      !! steps between progress lines; 0 = none
+    integer :: guard_every = 100          !! steps between NaN/Mach guards
+    real(wp) :: mach_limit = 0.3_wp       !! largest allowed u/c_s
+  end type run_cfg_t
+
+  !> &output: where and how often results are written.
+  type, public :: output_cfg_t
+    character(len=256) :: dir = ''        !! output directory; '' = runs/<namelist basename>
+    real(wp) :: field_interval = 0.0_wp   !! s between field outputs; 0 = at the end only
+    logical :: overwrite = .false.        !! allow replacing an existing <dir>/<name>.h5
+  end type output_cfg_t
+
+  !> The whole input of a run.
+  type, public :: config_t
+    character(len=:), allocatable :: file !! namelist path as given
+    character(len=:), allocatable :: name !! namelist basename without extension, e.g. 'case1'
+    type(domain_cfg_t) :: domain
+    type(fluid_cfg_t) :: fluid
+    type(lbm_cfg_t) :: lbm
+    type(inlet_cfg_t) :: inlet
+    type(initial_cfg_t) :: initial
+    type(run_cfg_t) :: run
+    type(output_cfg_t) :: output
+  end type config_t
+
+  !> Lattice-unit parameters derived from a valid configuration (derive_lattice).
+  type, public :: lattice_params_t
+    real(wp) :: dx = 0.0_wp          !! cm, lattice spacing
+    real(wp) :: dt = 0.0_wp          !! s, time step, diffusive scaling (E3)
+    real(wp) :: tau = 0.0_wp         !! relaxation time, time steps
+    real(wp) :: nu_lb = 0.0_wp       !! lattice kinematic viscosity (tau - 1/2)/3
+    real(wp) :: s(0:8) = 0.0_wp      !! rates in moment order rho,e,eps,jx,qx,jy,qy,pxx,pxy (E3)
+    integer :: nx = 0                !! cells across the channel
+    integer :: ny = 0                !! cells along the channel
+    integer :: steps = 0             !! time steps of the run
+    integer :: field_every = 0       !! steps between field outputs; 0 = at the end only
+    real(wp) :: force_lb(2) = 0.0_wp !! body force in lattice units
+    real(wp) :: u_in_lb = 0.0_wp     !! inlet velocity in lattice units
+    real(wp) :: u_init_lb = 0.0_wp   !! initial-flow amplitude in lattice units
+    real(wp) :: u_scale_lb = 0.0_wp  !! largest expected lattice speed
+    real(wp) :: mach = 0.0_wp        !! u_scale_lb / c_s
+    real(wp) :: reynolds = 0.0_wp    !! U width / nu with U = u_scale_lb dx/dt (physical)
+  end type lattice_params_t
+
+  !> The command line: dktlbm FILE [--set g.k=v ...] [--check] [--print-defaults] [--help]
+  !! [--version].
+  type, public :: cli_t
+    character(len=:), allocatable :: nml_file        !! the namelist file; '' if none was given
+    character(len=512), allocatable :: overrides(:)  !! 'group.key=value', in the given order
+    logical :: check = .false.
+    logical :: print_defaults = .false.
+    logical :: help = .false.
+    logical :: version = .false.
+  end type cli_t
+
+  character(len=*), parameter :: USAGE = 'usage: dktlbm FILE [--set group.key=value ...] '// &
+                                 '[--check] [--print-defaults] [--help] [--version]'
+  character(len=*), parameter :: OPTIONS = '--set group.key=value, --set=group.key=value, '// &
+                                 '--check, --print-defaults, --help, --version'
+  character(len=*), parameter :: NL = new_line('a')
+  real(wp), parameter :: WHOLE_TOL = 1.0e-6_wp !! how close width/dx must be to a whole number
+  real(wp), parameter :: MAX_CELLS = 1.0e9_wp  !! more cells on one axis is surely a typing error
+
+contains
+
+  !> Bind every input key to its component of `c`, with unit, range and meaning.
+  subroutine build_registry(c, reg)
+    type(config_t), intent(inout), target :: c
+    type(registry_t), intent(out) :: reg
+    character(len=*), parameter :: ENDS = 'wall periodic velocity outflow'
+
+    call add_real(reg, 'domain', 'width', c%domain%width, 'cm', &
+                  'channel width (x, across the channel)', gt=0.0_wp)
+    call add_real(reg, 'domain', 'height', c%domain%height, 'cm', &
+                  'channel length (y, along the channel axis)', gt=0.0_wp)
+    call add_choice(reg, 'domain', 'sides', c%domain%sides, 'wall periodic', &
+                    'boundary at x = 0 and x = width')
+    call add_choice(reg, 'domain', 'lower', c%domain%lower, ENDS, &
+                    'boundary at the lower end y = 0 (velocity, outflow: E5)')
+    call add_choice(reg, 'domain', 'upper', c%domain%upper, ENDS, &
+                    'boundary at the upper end y = height; periodic only with lower periodic')
+
+    call add_real(reg, 'fluid', 'density', c%fluid%density, 'g/cm^3', 'fluid density', gt=0.0_wp)
+    call add_real(reg, 'fluid', 'viscosity', c%fluid%viscosity, 'g/(cm s)', &
+                  'dynamic viscosity mu; the kinematic viscosity is mu/density', gt=0.0_wp)
+    call add_reals(reg, 'fluid', 'body_force', c%fluid%body_force, 'cm/s^2', &
+                   'uniform acceleration (x, y) on the fluid, for verification flows')
+
+    call add_real(reg, 'lbm', 'dx', c%lbm%dx, 'cm', 'lattice spacing', gt=0.0_wp)
+    call add_real(reg, 'lbm', 'tau', c%lbm%tau, '-', &
+                  'relaxation time in time steps; sets nu_lb = (tau - 1/2)/3 and dt (E3)', &
+                  gt=0.5_wp, le=10.0_wp)
+    call add_choice(reg, 'lbm', 'collision', c%lbm%collision, 'mrt bgk', &
+                    'collision model: multiple-relaxation-time (E1) or BGK (E4)')
+    call add_real(reg, 'lbm', 's_e', c%lbm%s_e, '-', 'MRT rate of the energy moment (E3)', &
+                  gt=0.0_wp, lt=2.0_wp)
+    call add_real(reg, 'lbm', 's_eps', c%lbm%s_eps, '-', &
+                  'MRT rate of the energy-square moment (E3)', gt=0.0_wp, lt=2.0_wp)
+    call add_real(reg, 'lbm', 's_q', c%lbm%s_q, '-', 'MRT rate of the heat-flux moments; '// &
+                  '0 = 8(2 - 1/tau)/(8 - 1/tau), which puts bounce-back walls half-way (E3)', &
+                  gt=0.0_wp, lt=2.0_wp, zero_ok=.true.)
+
+    call add_real(reg, 'inlet', 'velocity', c%inlet%velocity, 'cm/s', &
+                  'signed y-velocity at a velocity end (centreline value if parabolic)')
+    call add_choice(reg, 'inlet', 'profile', c%inlet%profile, 'uniform parabolic', &
+                    'shape of the inlet velocity across the channel')
+    call add_real(reg, 'inlet', 'ramp_time', c%inlet%ramp_time, 's', &
+                  'the inlet velocity ramps up smoothly over this time; 0 = at once', ge=0.0_wp)
+
+    call add_choice(reg, 'initial', 'flow', c%initial%flow, 'rest taylor_green', &
+                    'flow at t = 0; taylor_green needs periodic sides and ends')
+    call add_real(reg, 'initial', 'velocity', c%initial%velocity, 'cm/s', &
+                  'amplitude of the initial flow', ge=0.0_wp)
+
+    call add_real(reg, 'run', 't_end', c%run%t_end, 's', &
+                  'simulated time (ignored when steps > 0)', gt=0.0_wp)
+    call add_integer(reg, 'run', 'steps', c%run%steps, '-', &
+                     'number of time steps; 0 = from t_end', ge=0)
+    call add_real(reg, 'run', 't_ref', c%run%t_ref, 's', &
+                  'time scale of t* = t/t_ref; default sqrt(18 cm / 980 cm/s^2)', gt=0.0_wp)
+    call add_integer(reg, 'run', 'progress_every', c%run%progress_every, '-', &
+                     'time steps between progress lines; 0 = none', ge=0)
+    call add_integer(reg, 'run', 'guard_every', c%run%guard_every, '-', &
+                     'time steps between the NaN and Mach-number guards', ge=1)
+    call add_real(reg, 'run', 'mach_limit', c%run%mach_limit, '-', &
+                  'largest allowed Mach number u/c_s before the run is stopped', &
+                  gt=0.0_wp, le=1.0_wp)
+
+    call add_string(reg, 'output', 'dir', c%output%dir, &
+                    'output directory; empty = runs/<namelist basename>')
+    call add_real(reg, 'output', 'field_interval', c%output%field_interval, 's', &
+                  'time between field outputs; 0 = fields at the end only', ge=0.0_wp)
+    call add_logical(reg, 'output', 'overwrite', c%output%overwrite, &
+                     'allow replacing an existing <dir>/<name>.h5')
+  end subroutine build_registry
+
+  !> Defaults, then the namelist `text`, then the `overrides` ('group.key=value'), then
+  !! validation. `file` names the text in messages and gives cfg%name. On error `err` holds one
+  !! message naming file (and line), group, key, value and what is allowed; '' if valid.
+  subroutine config_load(cfg, text, file, overrides, err)
+    type(config_t), intent(out), target :: cfg !! intent(out): every component starts at default
+    character(len=*), intent(in) :: text, file
+    character(len=*), intent(in) :: overrides(:)
+    character(len=:), allocatable, intent(out) :: err
+    type(registry_t) :: reg
+    integer :: j
+    cfg%file = file
+    cfg%name = basename(file)
+    call build_registry(cfg, reg)
+    call parse_namelist(reg, text, file, err)
+    if (len(err) > 0) return
+    do j = 1, size(overrides)
+      if (len_trim(overrides(j)) == 0) cycle
+      call apply_override(reg, overrides(j), file, err)
+      if (len(err) > 0) return
+    end do
+    call validate(cfg, reg, err)
+  end subroutine config_load
+
+  !> Validate a configuration built or changed in code ('' if valid).
+  subroutine config_validate(cfg, err)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable, intent(out) :: err
+    type(config_t), target :: c
+    type(registry_t) :: reg
+    c = cfg
+    if (.not. allocated(c%file)) c%file = ''
+    call build_registry(c, reg)
+    call validate(c, reg, err)
+  end subroutine config_validate
+
+  !> Every check of a configuration: each key's range or choices, then the rules that join
+  !! keys. Messages name where the key was set (file:line or --set), else the file.
+  subroutine validate(c, reg, err)
+    type(config_t), intent(in) :: c
+    type(registry_t), intent(in) :: reg
+    character(len=:), allocatable, intent(out) :: err
+    type(lattice_params_t) :: lp
+    real(wp) :: n_steps
+    integer :: j
+
+    do j = 1, size(reg%keys)
+      call check_key(reg%keys(j), c%file, err)
+      if (len(err) > 0) return
+    end do
+
+    associate (d => c%domain)
+      if ((d%lower == 'periodic') .neqv. (d%upper == 'periodic')) then
+        err = src(merge('lower', 'upper', d%lower == 'periodic'), 'domain')// &
+              ': &domain lower = '//val('domain', 'lower')//' and upper = '// &
+              val('domain', 'upper')//': a periodic channel needs both ends periodic; '// &
+              'set lower and upper both to ''periodic'', or neither'
+        return
+      end if
+      if (c%initial%flow == 'taylor_green' .and. &
+          any([d%sides, d%lower, d%upper] /= 'periodic')) then
+        err = src('flow', 'initial')//': &initial flow = ''taylor_green'' needs a periodic '// &
+              'domain, but &domain sides = '//val('domain', 'sides')//', lower = '// &
+              val('domain', 'lower')//', upper = '//val('domain', 'upper')// &
+              '; set all three to ''periodic'''
+        return
+      end if
+      call check_cells('width', 'nx', d%width)
+      if (len(err) > 0) return
+      call check_cells('height', 'ny', d%height)
+      if (len(err) > 0) return
+    end associate
+
+    lp = lattice_from(c)
+    if (c%run%steps == 0) then
+      n_steps = c%run%t_end/lp%dt
+      if (n_steps < 0.5_wp) then
+        err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives 0 time '// &
+              'steps: dt = '//fmt_real(lp%dt)//' s (from &lbm dx, tau and &fluid density, '// &
+              'viscosity); allowed: t_end >= dt/2, or &run steps >= 1'
+        return
+      else if (n_steps >= real(huge(1), wp)) then
+        err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives '// &
+              fmt_real(anint(n_steps))//' time steps of dt = '//fmt_real(lp%dt)// &
+              ' s; allowed: at most '//itoa(huge(1))//'; make t_end smaller or dx larger'
+        return
+      end if
+    end if
+  contains
+    function val(g, k) result(s)
+      character(len=*), intent(in) :: g, k
+      character(len=:), allocatable :: s
+      s = value_text(reg%keys(find_key(reg, g, k)))
+    end function val
+
+    function src(k, g) result(s)
+      character(len=*), intent(in) :: k, g
+      character(len=:), allocatable :: s
+      s = origin_of(reg, g, k, c%file)
+    end function src
+
+    !> length/dx must be a whole number (within WHOLE_TOL) of at least 3 cells: the lattice
+    !! would otherwise silently change the channel's size, and a channel needs interior cells.
+    subroutine check_cells(key, axis, length)
+      character(len=*), intent(in) :: key, axis
+      real(wp), intent(in) :: length
+      real(wp) :: r
+      character(len=:), allocatable :: both
+      r = length/c%lbm%dx
+      both = origin_of(reg, 'lbm', 'dx', src(key, 'domain'))//': &domain '//key//' = '// &
+             val('domain', key)//' and &lbm dx = '//val('lbm', 'dx')//' give '
+      if (r >= MAX_CELLS) then
+        err = both//axis//' = '//key//'/dx = '//fmt_real(r)//' cells; allowed: fewer than '// &
+              fmt_real(MAX_CELLS)//'; make dx larger'
+      else if (nint(r) < 3) then
+        err = both//axis//' = nint('//key//'/dx) = '//itoa(nint(r))//' cells; allowed: '// &
+              axis//' >= 3; make dx smaller, e.g. dx = '//fmt_real(length/3.0_wp)
+      else if (abs(r - anint(r)) > WHOLE_TOL) then
+        err = both//key//'/dx = '//fmt_real(r)//' cells, not a whole number; choose dx = '// &
+              key//'/n, e.g. dx = '//fmt_real(length/anint(r))//' ('//itoa(nint(r))//' cells)'
+      end if
+    end subroutine check_cells
+  end subroutine validate
+
+  !> The lattice-unit parameters of a configuration (E3, E4); `cfg` must be valid.
+  subroutine derive_lattice(cfg, lp, err)
+    type(config_t), intent(in) :: cfg
+    type(lattice_params_t), intent(out) :: lp
+    character(len=:), allocatable, intent(out) :: err
+    call config_validate(cfg, err)
+    if (len(err) == 0) lp = lattice_from(cfg)
+  end subroutine derive_lattice
+
+  function lattice_from(c) result(lp)
+    type(config_t), intent(in) :: c
+    type(lattice_params_t) :: lp
+    real(wp) :: nu, s_nu, s_q, width_lb
+    nu = c%fluid%viscosity/c%fluid%density ! cm^2/s
+    lp%dx = c%lbm%dx
+    lp%tau = c%lbm%tau
+    lp%nu_lb = cs2*(c%lbm%tau - 0.5_wp)    ! E3 with s_nu = 1/tau
+    lp%dt = lp%nu_lb*lp%dx**2/nu           ! E3: nu = nu_lb dx^2/dt (diffusive scaling)
+    s_nu = 1.0_wp/c%lbm%tau
+    if (c%lbm%collision == 'bgk') then
+      lp%s = s_nu                          ! E4: BGK is MRT with every rate 1/tau
+    else
+      s_q = c%lbm%s_q
+      ! s_q = 0 (the only value <= 0 that passes validation) asks for the E3 rule, which puts
+      ! bounce-back walls exactly half-way between nodes.
+      if (s_q <= 0.0_wp) s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
+      lp%s = [0.0_wp, c%lbm%s_e, c%lbm%s_eps, 0.0_wp, s_q, 0.0_wp, s_q, s_nu, s_nu]
+    end if
+    lp%nx = count_of(c%domain%width/lp%dx)
+    lp%ny = count_of(c%domain%height/lp%dx)
+    lp%steps = c%run%steps
+    if (lp%steps == 0) lp%steps = count_of(c%run%t_end/lp%dt)
+    lp%field_every = 0
+    if (c%output%field_interval > 0.0_wp) &
+      lp%field_every = max(1, count_of(c%output%field_interval/lp%dt))
+    lp%force_lb = c%fluid%body_force*lp%dt**2/lp%dx
+    lp%u_in_lb = c%inlet%velocity*lp%dt/lp%dx
+    lp%u_init_lb = c%initial%velocity*lp%dt/lp%dx
+    ! Body-force Poiseuille peak g W^2/(8 nu) in lattice units, W = nx.
+    width_lb = real(lp%nx, wp)
+    lp%u_scale_lb = max(abs(lp%u_in_lb), lp%u_init_lb, &
+                        norm2(lp%force_lb)*width_lb**2/(8.0_wp*lp%nu_lb))
+    lp%mach = lp%u_scale_lb/sqrt(cs2)
+    lp%reynolds = (lp%u_scale_lb*lp%dx/lp%dt)*c%domain%width/nu
+  contains
+    pure integer function count_of(x)
+      real(wp), intent(in) :: x
+      count_of = nint(min(x, real(huge(1), wp) - 1.0_wp))
+    end function count_of
+  end function lattice_from
+
+  !> The whole configuration as namelist text that config_load reads back: one key per line,
+  !! each with '! [unit] default: ..; allowed: ..; meaning'. For --print-defaults and the
+  !! output file.
+  subroutine config_to_namelist(cfg, text)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable, intent(out) :: text
+    type(config_t), target :: c, defaults ! `defaults` keeps its initial (default) values
+    type(registry_t) :: reg, dreg
+    character(len=:), allocatable :: line
+    integer :: j
+    c = cfg
+    call build_registry(c, reg)
+    call build_registry(defaults, dreg)
+    text = '! dktlbm input: every key with its value. Units cm, g, s. Each key''s comment:'//NL// &
+           '! [unit] default: ..; allowed: ..; meaning. Reference: input/README.md.'//NL
+    do j = 1, size(reg%keys)
+      associate (k => reg%keys(j))
+        if (j == 1) then
+          text = text//'&'//k%group//NL
+        else if (k%group /= reg%keys(j - 1)%group) then
+          text = text//'/'//NL//'&'//k%group//NL
+        end if
+        line = '  '//k%name//' = '//value_text(k)
+        line = line//repeat(' ', max(1, 34 - len(line)))
+        text = text//line//'! ['//k%unit//'] default: '//value_text(dreg%keys(j))// &
+               '; allowed: '//allowed_text(k)//'; '//k%meaning//NL
+      end associate
+    end do
+    text = text//'/'//NL
+  end subroutine config_to_namelist
+
+  !> The output directory: output%dir, or runs/<name> when it is empty.
+  function config_output_dir(cfg) result(dir)
+    type(config_t), intent(in) :: cfg
+    character(len=:), allocatable :: dir
+    dir = trim(cfg%output%dir)
+    if (len(dir) == 0) dir = 'runs/'//cfg%name
+  end function config_output_dir
+
+  ! ---------------------------------------------------------------- command line and files
+
+  !> Read the command line of the program into `cli` (see parse_arguments).
+  subroutine parse_command_line(cli, err)
+    type(cli_t), intent(out) :: cli
+    character(len=:), allocatable, intent(out) :: err
+    integer :: j, n, length, longest
+    n = command_argument_count()
+    longest = 1
+    do j = 1, n
+      call get_command_argument(j, length=length)
+      longest = max(longest, length)
+    end do
+    block
+      character(len=longest) :: args(n)
+      do j = 1, n
+        call get_command_argument(j, args(j))
+      end do
+      call parse_arguments(args, cli, err)
+    end block
+  end subroutine parse_command_line
+
+  !> Interpret the arguments `args` (without the program name):
+  !! FILE [--set g.k=v | --set=g.k=v ...] [--check] [--print-defaults] [--help] [--version].
+  !! A FILE is needed unless --help, --version or --print-defaults is given.
+  subroutine parse_arguments(args, cli, err)
+    character(len=*), intent(in) :: args(:)
+    type(cli_t), intent(out) :: cli
+    character(len=:), allocatable, intent(out) :: err
+    character(len=:), allocatable :: arg
+    integer :: j
+    err = ''
+    cli%nml_file = ''
+    allocate (cli%overrides(0))
+    j = 0
+    do while (j < size(args))
+      j = j + 1
+      arg = trim(args(j))
+      select case (arg)
+      case ('--set')
+        if (j == size(args)) then
+          err = 'option --set needs a value: --set group.key=value, e.g. --set lbm.tau=0.7'
+          return
+        end if
+        j = j + 1
+        call add_override(trim(args(j)))
+      case ('--check')
+        cli%check = .true.
+      case ('--print-defaults')
+        cli%print_defaults = .true.
+      case ('--help', '-h')
+        cli%help = .true.
+      case ('--version')
+        cli%version = .true.
+      case default
+        if (index(arg, '--set=') == 1) then
+          call add_override(arg(7:))
+        else if (index(arg, '-') == 1 .and. len(arg) > 1) then
+          err = 'unknown option '''//arg//'''; options: '//OPTIONS//NL//USAGE
+        else if (len(cli%nml_file) > 0) then
+          err = 'more than one namelist file: '''//cli%nml_file//''' and '''//arg//''''// &
+                NL//USAGE
+        else
+          cli%nml_file = arg
+        end if
+      end select
+      if (len(err) > 0) return
+    end do
+    if (len(cli%nml_file) == 0 .and. .not. (cli%help .or. cli%version .or. cli%print_defaults)) &
+      err = 'no namelist file given'//NL//USAGE//NL//'see dktlbm --help'
+  contains
+    subroutine add_override(spec)
+      character(len=*), intent(in) :: spec
+      if (len(spec) > len(cli%overrides)) then
+        err = 'option --set '//spec(:40)//'... is longer than '//itoa(len(cli%overrides))// &
+              ' characters'
+      else if (index(spec, '=') == 0 .or. index(spec, '.') == 0) then
+        err = 'option --set '//spec//': expected --set group.key=value, e.g. --set lbm.tau=0.7'
+      else
+        cli%overrides = [character(len=len(cli%overrides)) :: cli%overrides, spec]
+      end if
+    end subroutine add_override
+  end subroutine parse_arguments
+
+  !> Read the file `path` whole into `text`, newlines kept.
+  subroutine read_text_file(path, text, err)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: text
+    character(len=:), allocatable, intent(out) :: err
+    character(len=256) :: msg
+    logical :: exists
+    integer :: unit, ios, nbytes
+    err = ''
+    text = ''
+    inquire (file=path, exist=exists)
+    if (.not. exists) then
+      err = 'cannot open namelist file '''//path//''': no such file'
+      return
+    end if
+    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', &
+          status='old', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      err = 'cannot open namelist file '''//path//''': '//trim(msg)
+      return
+    end if
+    inquire (unit=unit, size=nbytes)
+    if (nbytes > 0) then
+      deallocate (text)
+      allocate (character(len=nbytes) :: text)
+      read (unit, iostat=ios, iomsg=msg) text
+    end if
+    if (nbytes < 0 .or. ios /= 0) then
+      if (nbytes < 0) msg = 'its size is unknown'
+      err = 'cannot read namelist file '''//path//''': '//trim(msg)
+    end if
+    close (unit)
+  end subroutine read_text_file
+
+  !> Usage, options and a word on the input, to `unit`.
+  subroutine print_help(unit)
+    integer, intent(in) :: unit
+    type(config_t), target :: defaults
+    type(registry_t) :: reg
+    character(len=:), allocatable :: groups
+    integer :: j
+    call build_registry(defaults, reg)
+    groups = '&'//reg%keys(1)%group
+    do j = 2, size(reg%keys)
+      if (reg%keys(j)%group /= reg%keys(j - 1)%group) groups = groups//', &'//reg%keys(j)%group
+    end do
+    write (unit, '(a)') USAGE, &
+      '       mpirun -n N dktlbm FILE ...', &
+      '', &
+      'Particles settling in a 2-D channel, D2Q9 lattice Boltzmann (MRT), on MPI ranks.', &
+      '', &
+      'options:', &
+      '  FILE                   the scene: a namelist file, e.g. input/case1.nml', &
+      '  --set group.key=value  set one key after FILE is read (also --set=group.key=value);', &
+      '                         repeatable; array elements as key(2)=value; strings need no', &
+      '                         quotes, e.g. --set lbm.tau=0.7 --set output.dir=/tmp/run', &
+      '  --check                validate, print the derived lattice parameters and exit', &
+      '  --print-defaults       print every key with its default, unit, allowed values and', &
+      '                         meaning, as a namelist file, and exit', &
+      '  --help                 print this help and exit', &
+      '  --version              print the version and exit', &
+      '', &
+      'The input file holds namelist groups in physical units (cm, g, s):', &
+      '  '//groups, &
+      'A group starts with &name, holds key = value items separated by commas or newlines,', &
+      'and ends with /; ! starts a comment. A key not given keeps its default. An invalid', &
+      'key or value stops the run with a message naming the file, line, group, key, value', &
+      'and what is allowed. All keys: dktlbm --print-defaults, or input/README.md.'
+  end subroutine print_help
+
+  ! ---------------------------------------------------------------- helpers
+
+  !> 'input/case1.nml' -> 'case1'; 'unnamed' for an empty name.
+  function basename(path) result(name)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: name
+    integer :: p
+    name = path(index(path, '/', back=.true.) + 1:)
+    p = index(name, '.', back=.true.)
+    if (p > 1) name = name(:p - 1)
+    if (len(name) == 0) name = 'unnamed'
+  end function basename
+
+end module dkt_config

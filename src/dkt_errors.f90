@@ -1,0 +1,74 @@
+!> The one error routine of dktlbm. Every stop for bad input or a failed guard goes through here,
+!> so that all ranks end, the exit status is non-zero, and the message is printed once.
+module dkt_errors
+  use iso_fortran_env, only: error_unit, output_unit
+  use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Abort, MPI_Finalize, MPI_Initialized, &
+                     MPI_Finalized
+  implicit none
+  private
+  public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME
+
+  integer, parameter :: EXIT_INPUT = 2   !! exit status for bad input
+  !> exit status for a run stopped by a guard or a failed write
+  integer, parameter :: EXIT_RUNTIME = 3
+
+contains
+
+  !> Stop every rank for an error that all ranks detected together (input validation is
+  !! deterministic on every rank): rank 0 prints, all ranks finalise MPI and exit non-zero.
+  subroutine fatal_all(msg, code)
+    character(len=*), intent(in) :: msg  !! what is wrong and what to change
+    integer, intent(in), optional :: code !! exit status (default EXIT_INPUT)
+    integer :: rank, status
+    logical :: up, down
+    status = EXIT_INPUT
+    if (present(code)) status = code
+    rank = 0
+    call MPI_Initialized(up)
+    call MPI_Finalized(down)
+    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+    if (rank == 0) then
+      flush (output_unit)
+      write (error_unit, '(a)') 'dktlbm: error: '//msg
+      flush (error_unit)
+    end if
+    if (up .and. .not. down) call MPI_Finalize()
+    stop status, quiet = .true.
+  end subroutine fatal_all
+
+  !> Stop every rank for an error that one rank saw alone (a guard on its slab, a failed write):
+  !! that rank prints with its number and aborts the whole job, so no rank waits forever.
+  subroutine fatal_local(msg, code)
+    character(len=*), intent(in) :: msg
+    integer, intent(in), optional :: code
+    integer :: rank, status
+    logical :: up, down
+    status = EXIT_RUNTIME
+    if (present(code)) status = code
+    rank = 0
+    call MPI_Initialized(up)
+    call MPI_Finalized(down)
+    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+    flush (output_unit)
+    write (error_unit, '(a,i0,a)') 'dktlbm: error [rank ', rank, ']: '//msg
+    flush (error_unit)
+    if (up .and. .not. down) call MPI_Abort(MPI_COMM_WORLD, status)
+    stop status, quiet = .true.
+  end subroutine fatal_local
+
+  !> A warning, printed once by rank 0; the run goes on.
+  subroutine warn(msg)
+    character(len=*), intent(in) :: msg
+    integer :: rank
+    logical :: up, down
+    rank = 0
+    call MPI_Initialized(up)
+    call MPI_Finalized(down)
+    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+    if (rank == 0) then
+      write (error_unit, '(a)') 'dktlbm: warning: '//msg
+      flush (error_unit)
+    end if
+  end subroutine warn
+
+end module dkt_errors

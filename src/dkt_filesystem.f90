@@ -1,0 +1,56 @@
+!> The little the code needs from the file system that Fortran does not offer: creating a
+!> directory path (POSIX mkdir through C interoperability) and testing for existence.
+module dkt_filesystem
+  use iso_c_binding, only: c_char, c_int, c_null_char
+  implicit none
+  private
+  public :: make_directories, path_exists
+
+  interface
+    integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: mode
+    end function c_mkdir
+  end interface
+
+contains
+
+  !> True if a file or directory exists at path.
+  logical function path_exists(path)
+    character(len=*), intent(in) :: path
+    inquire (file=path, exist=path_exists)
+    if (.not. path_exists) inquire (file=trim(path)//'/.', exist=path_exists)
+  end function path_exists
+
+  !> Create directory path and its missing parents (like mkdir -p). err is '' on success.
+  subroutine make_directories(path, err)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: err
+    integer :: k
+    integer(c_int) :: rc
+    err = ''
+    if (len_trim(path) == 0) then
+      err = 'empty directory name'
+      return
+    end if
+    do k = 2, len_trim(path) + 1
+      if (k <= len_trim(path)) then
+        if (path(k:k) /= '/') cycle
+      end if
+      if (path_exists(path(1:k - 1))) cycle
+      rc = c_mkdir(path(1:k - 1)//c_null_char, int(o'755', c_int))
+      if (rc /= 0 .and. .not. path_exists(path(1:k - 1))) then
+        err = 'cannot create directory '''//path(1:k - 1)//''''
+        return
+      end if
+    end do
+    if (.not. is_directory(path)) err = ''''//trim(path)//''' exists but is not a directory'
+  end subroutine make_directories
+
+  logical function is_directory(path)
+    character(len=*), intent(in) :: path
+    inquire (file=trim(path)//'/.', exist=is_directory)
+  end function is_directory
+
+end module dkt_filesystem

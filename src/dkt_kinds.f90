@@ -1,0 +1,16 @@
+!> Working precision, integer kinds, the matching MPI datatype and physical constants.
+module dkt_kinds
+  use iso_fortran_env, only: real64, int32, int64
+  use mpi_f08, only: MPI_Datatype, MPI_DOUBLE_PRECISION
+  implicit none
+  private
+  public :: wp, ip, i8, mpi_wp, pi, cs2
+
+  integer, parameter :: wp = real64 !! working precision of every field and particle quantity
+  integer, parameter :: ip = int32  !! default integer kind for indices
+  integer, parameter :: i8 = int64  !! counters that may exceed 2**31 (cell updates, bytes)
+  type(MPI_Datatype), parameter :: mpi_wp = MPI_DOUBLE_PRECISION !! MPI type matching wp
+
+  real(wp), parameter :: pi = 3.14159265358979323846264338327950288_wp
+  real(wp), parameter :: cs2 = 1.0_wp/3.0_wp !! lattice speed of sound squared, c_s^2 (SPEC §1)
+end module dkt_kinds

@@ -1,0 +1,65 @@
+!> The run log: lines from rank 0 go to standard output and, once the output directory is
+!> known, also into <output.dir>/<name>.log (lines written before that are replayed there).
+module dkt_log
+  use iso_fortran_env, only: output_unit
+  use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank
+  implicit none
+  private
+  public :: log_line, log_open, log_close
+
+  integer, save :: log_unit = -1
+  character(len=:), allocatable, save :: pending   !! lines logged before log_open
+  logical, save :: to_stdout = .true.
+
+contains
+
+  logical function is_root()
+    integer :: rank
+    call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+    is_root = rank == 0
+  end function is_root
+
+  !> Print one line on rank 0 (and keep it for the log file).
+  subroutine log_line(msg)
+    character(len=*), intent(in) :: msg
+    if (.not. is_root()) return
+    if (to_stdout) then
+      write (output_unit, '(a)') msg
+      flush (output_unit)
+    end if
+    if (log_unit >= 0) then
+      write (log_unit, '(a)') msg
+      flush (log_unit)
+    else
+      if (.not. allocated(pending)) pending = ''
+      pending = pending//msg//new_line('a')
+    end if
+  end subroutine log_line
+
+  !> Open the log file on rank 0 and write the lines logged so far. err is '' on success.
+  subroutine log_open(path, err)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: err
+    integer :: ios
+    character(len=256) :: iomsg
+    err = ''
+    if (.not. is_root()) return
+    open (newunit=log_unit, file=path, status='replace', action='write', iostat=ios, &
+          iomsg=iomsg)
+    if (ios /= 0) then
+      log_unit = -1
+      err = 'cannot write the log file '''//path//''': '//trim(iomsg)
+      return
+    end if
+    if (allocated(pending)) then
+      write (log_unit, '(a)', advance='no') pending
+      deallocate (pending)
+    end if
+  end subroutine log_open
+
+  subroutine log_close()
+    if (log_unit >= 0) close (log_unit)
+    log_unit = -1
+  end subroutine log_close
+
+end module dkt_log

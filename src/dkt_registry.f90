@@ -1,0 +1,527 @@
+!> The input keys of a configuration: for each key its group, name, type, unit, range or
+!> choices and meaning, bound by pointer to the component of the configuration that holds its
+!> value. Parsing (dkt_namelist), range checks, --print-defaults and the documentation are all
+!> derived from it, so a key is declared once (in dkt_config).
+!>
+!> The registry also gives the text form of values (reals round-trip exactly) and of what a key
+!> accepts, and the hints for an unknown group or key (the known names and the closest one).
+module dkt_registry
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: iso_fortran_env, only: int64
+  use dkt_kinds, only: wp
+  implicit none
+  private
+  public :: key_t, registry_t
+  public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
+  public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice
+  public :: find_key, has_group, origin_of, unknown_group_hint, unknown_key_hint, check_key
+  public :: value_text, allowed_text, type_name, fmt_real
+  public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
+
+  integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
+                        KEY_CHOICE = 5
+
+  !> One input key: where its value lives, what it accepts and what it means.
+  type :: key_t
+    character(len=:), allocatable :: group   !! group name, lower case
+    character(len=:), allocatable :: name    !! key name, lower case
+    integer :: kind = 0                      !! KEY_REAL .. KEY_CHOICE
+    integer :: n = 0                         !! number of elements of an array key; 0 = scalar
+    character(len=:), allocatable :: unit    !! physical unit; '-' for a pure number
+    character(len=:), allocatable :: meaning !! one line, no '|' (it goes into markdown tables)
+    character(len=:), allocatable :: choices !! allowed values of a choice, blank-separated
+    logical :: has_lo = .false., lo_open = .false., has_hi = .false., hi_open = .false.
+    logical :: zero_ok = .false.             !! 0 is allowed besides the range ("use the rule")
+    real(wp) :: lo = 0.0_wp, hi = 0.0_wp     !! range bounds (integers are compared as reals)
+    character(len=:), allocatable :: origin  !! 'file:line' or '--set ...' of the last assignment
+    real(wp), pointer :: r => null()
+    real(wp), pointer :: ra(:) => null()
+    integer, pointer :: i => null()
+    logical, pointer :: l => null()
+    character(len=:), pointer :: s => null()
+  end type key_t
+
+  !> The keys of a configuration, in the order they are documented and printed.
+  type :: registry_t
+    type(key_t), allocatable :: keys(:)
+    character(len=:), allocatable :: groups  !! group names in order, blank-separated
+  end type registry_t
+
+contains
+
+  ! ---------------------------------------------------------------- construction
+
+  subroutine add_key(reg, group, name, kind, unit, meaning)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, unit, meaning
+    integer, intent(in) :: kind
+    type(key_t) :: k
+    if (.not. allocated(reg%keys)) allocate (reg%keys(0))
+    if (.not. allocated(reg%groups)) reg%groups = ''
+    k%group = lower_case(group)
+    k%name = lower_case(name)
+    k%kind = kind
+    k%unit = unit
+    k%meaning = meaning
+    k%choices = ''
+    k%origin = ''
+    reg%keys = [reg%keys, k]
+    if (word_index(reg%groups, k%group) == 0) reg%groups = trim(adjustl(reg%groups//' '//k%group))
+  end subroutine add_key
+
+  !> Register a real key bound to `x`; the range is given by any of gt, ge, lt, le.
+  subroutine add_real(reg, group, name, x, unit, meaning, gt, ge, lt, le, zero_ok)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, unit, meaning
+    real(wp), intent(inout), target :: x
+    real(wp), intent(in), optional :: gt, ge, lt, le
+    logical, intent(in), optional :: zero_ok
+    call add_key(reg, group, name, KEY_REAL, unit, meaning)
+    reg%keys(size(reg%keys))%r => x
+    call set_range(reg%keys(size(reg%keys)), gt, ge, lt, le, zero_ok)
+  end subroutine add_real
+
+  !> Register a real array key bound to `x` (documented as name(size(x))).
+  subroutine add_reals(reg, group, name, x, unit, meaning, gt, ge, lt, le)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, unit, meaning
+    real(wp), intent(inout), target, contiguous :: x(:)
+    real(wp), intent(in), optional :: gt, ge, lt, le
+    call add_key(reg, group, name, KEY_REAL, unit, meaning)
+    reg%keys(size(reg%keys))%ra => x
+    reg%keys(size(reg%keys))%n = size(x)
+    call set_range(reg%keys(size(reg%keys)), gt, ge, lt, le)
+  end subroutine add_reals
+
+  !> Register an integer key bound to `x`, with an optional range ge..le.
+  subroutine add_integer(reg, group, name, x, unit, meaning, ge, le)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, unit, meaning
+    integer, intent(inout), target :: x
+    integer, intent(in), optional :: ge, le
+    call add_key(reg, group, name, KEY_INTEGER, unit, meaning)
+    reg%keys(size(reg%keys))%i => x
+    if (present(ge)) call set_range(reg%keys(size(reg%keys)), ge=real(ge, wp))
+    if (present(le)) call set_range(reg%keys(size(reg%keys)), le=real(le, wp))
+  end subroutine add_integer
+
+  subroutine add_logical(reg, group, name, x, meaning)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, meaning
+    logical, intent(inout), target :: x
+    call add_key(reg, group, name, KEY_LOGICAL, '-', meaning)
+    reg%keys(size(reg%keys))%l => x
+  end subroutine add_logical
+
+  !> Register a free-text key bound to `x`; the value may not be longer than len(x).
+  subroutine add_string(reg, group, name, x, meaning)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, meaning
+    character(len=*), intent(inout), target :: x
+    call add_key(reg, group, name, KEY_STRING, '-', meaning)
+    reg%keys(size(reg%keys))%s => x
+  end subroutine add_string
+
+  !> Register a key whose value is one of `choices` (blank-separated, lower case).
+  subroutine add_choice(reg, group, name, x, choices, meaning)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, choices, meaning
+    character(len=*), intent(inout), target :: x
+    call add_key(reg, group, name, KEY_CHOICE, '-', meaning)
+    reg%keys(size(reg%keys))%s => x
+    reg%keys(size(reg%keys))%choices = trim(adjustl(choices))
+  end subroutine add_choice
+
+  subroutine set_range(k, gt, ge, lt, le, zero_ok)
+    type(key_t), intent(inout) :: k
+    real(wp), intent(in), optional :: gt, ge, lt, le
+    logical, intent(in), optional :: zero_ok
+    if (present(gt)) then
+      k%has_lo = .true.; k%lo_open = .true.; k%lo = gt
+    end if
+    if (present(ge)) then
+      k%has_lo = .true.; k%lo_open = .false.; k%lo = ge
+    end if
+    if (present(lt)) then
+      k%has_hi = .true.; k%hi_open = .true.; k%hi = lt
+    end if
+    if (present(le)) then
+      k%has_hi = .true.; k%hi_open = .false.; k%hi = le
+    end if
+    if (present(zero_ok)) k%zero_ok = zero_ok
+  end subroutine set_range
+
+  ! ---------------------------------------------------------------- look-up
+
+  !> Index of key `name` of `group` in the registry, 0 if there is none.
+  pure integer function find_key(reg, group, name) result(idx)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: group, name
+    do idx = 1, size(reg%keys)
+      if (reg%keys(idx)%group == lower_case(group) .and. reg%keys(idx)%name == lower_case(name)) &
+        return
+    end do
+    idx = 0
+  end function find_key
+
+  !> Is `group` a group of the registry?
+  logical function has_group(reg, group)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: group
+    has_group = word_index(reg%groups, lower_case(group)) > 0
+  end function has_group
+
+  !> Where the key was last set ('file:line' or the --set option), or `fallback` if never.
+  function origin_of(reg, group, name, fallback) result(src)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: group, name, fallback
+    character(len=:), allocatable :: src
+    integer :: idx
+    src = fallback
+    idx = find_key(reg, group, name)
+    if (idx > 0) then
+      if (len(reg%keys(idx)%origin) > 0) src = reg%keys(idx)%origin
+    end if
+  end function origin_of
+
+  !> '; known groups: &a, &b, ...; did you mean &x?' for a group that is not in the registry.
+  function unknown_group_hint(reg, group) result(s)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: group
+    character(len=:), allocatable :: s
+    s = '; known groups: '//join(reg%groups, '&', '')//suggest(group, reg%groups, '&', '')
+  end function unknown_group_hint
+
+  !> For `name`, not a key of `group`: the group where it is a key if any, the keys of `group`
+  !! and the closest of them.
+  function unknown_key_hint(reg, group, name) result(s)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: group, name
+    character(len=:), allocatable :: s, keys
+    integer :: j
+    s = ''
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%name == name) s = ' ('//name//' is a key of &'//reg%keys(j)%group//')'
+    end do
+    keys = group_keys(reg, group)
+    s = s//'; keys of &'//group//': '//join(keys, '', '')//suggest(name, keys, '''', '''')
+  end function unknown_key_hint
+
+  ! ---------------------------------------------------------------- checks
+
+  !> Check the current value of key `k` against its range or choices. `fallback` names the
+  !! source when the key was never assigned (a default).
+  subroutine check_key(k, fallback, err)
+    type(key_t), intent(in) :: k
+    character(len=*), intent(in) :: fallback
+    character(len=:), allocatable, intent(out) :: err
+    character(len=:), allocatable :: src, tail
+    integer :: j
+    err = ''
+    src = fallback
+    if (len(k%origin) > 0) src = k%origin
+    tail = '; allowed: '//allowed_text(k)//' ('//k%meaning//')'
+    select case (k%kind)
+    case (KEY_REAL)
+      if (k%n == 0) then
+        if (.not. in_range(k, k%r)) &
+          err = src//': &'//k%group//' '//k%name//' = '//fmt_real(k%r)//' is out of range'//tail
+      else
+        do j = 1, k%n
+          if (.not. in_range(k, k%ra(j))) then
+            err = src//': &'//k%group//' '//k%name//'('//itoa(j)//') = '// &
+                  fmt_real(k%ra(j))//' is out of range'//tail
+            return
+          end if
+        end do
+      end if
+    case (KEY_INTEGER)
+      if (.not. in_range(k, real(k%i, wp))) &
+        err = src//': &'//k%group//' '//k%name//' = '//itoa(k%i)//' is out of range'//tail
+    case (KEY_CHOICE)
+      if (word_index(k%choices, trim(k%s)) == 0) &
+        err = src//': &'//k%group//' '//k%name//' = '''//trim(k%s)//''' is not one of '// &
+              join(k%choices, '''', '''')//suggest(trim(k%s), k%choices, '''', '''')//' ('// &
+              k%meaning//')'
+    end select
+  end subroutine check_key
+
+  pure logical function in_range(k, x)
+    type(key_t), intent(in) :: k
+    real(wp), intent(in) :: x
+    in_range = .true.
+    if (k%zero_ok .and. abs(x) <= 0.0_wp) return ! exactly 0
+    if (k%has_lo) in_range = in_range .and. merge(x > k%lo, x >= k%lo, k%lo_open)
+    if (k%has_hi) in_range = in_range .and. merge(x < k%hi, x <= k%hi, k%hi_open)
+  end function in_range
+
+  ! ---------------------------------------------------------------- text forms
+
+  !> The key's current value as namelist text (reals round-trip exactly).
+  function value_text(k) result(s)
+    type(key_t), intent(in) :: k
+    character(len=:), allocatable :: s
+    integer :: j
+    select case (k%kind)
+    case (KEY_REAL)
+      if (k%n == 0) then
+        s = fmt_real(k%r)
+      else
+        s = fmt_real(k%ra(1))
+        do j = 2, k%n
+          s = s//', '//fmt_real(k%ra(j))
+        end do
+      end if
+    case (KEY_INTEGER)
+      s = itoa(k%i)
+    case (KEY_LOGICAL)
+      s = merge('.true. ', '.false.', k%l)
+      s = trim(s)
+    case default
+      s = quoted(trim(k%s))
+    end select
+  end function value_text
+
+  !> What the key accepts, e.g. '0.5 < tau <= 10', 'one of ''mrt'', ''bgk'''.
+  function allowed_text(k) result(s)
+    type(key_t), intent(in) :: k
+    character(len=:), allocatable :: s, nm
+    nm = k%name
+    if (k%n > 0) nm = k%name//'(i)'
+    select case (k%kind)
+    case (KEY_REAL, KEY_INTEGER)
+      if (k%has_lo .and. k%has_hi) then
+        s = bound(k, k%lo)//merge(' < ', ' <=', k%lo_open)//' '//nm// &
+            merge(' < ', ' <=', k%hi_open)//' '//bound(k, k%hi)
+      else if (k%has_lo) then
+        s = nm//merge(' > ', ' >=', k%lo_open)//' '//bound(k, k%lo)
+      else if (k%has_hi) then
+        s = nm//merge(' < ', ' <=', k%hi_open)//' '//bound(k, k%hi)
+      else
+        s = 'any'
+      end if
+      s = squeeze(s)
+      if (k%zero_ok) s = nm//' = 0 or '//s
+    case (KEY_LOGICAL)
+      s = '.true. or .false.'
+    case (KEY_CHOICE)
+      s = 'one of '//join(k%choices, '''', '''')
+    case default
+      s = 'text of at most '//itoa(len(k%s))//' characters'
+    end select
+  end function allowed_text
+
+  function bound(k, x) result(s)
+    type(key_t), intent(in) :: k
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    if (k%kind == KEY_INTEGER) then
+      s = itoa(nint(x))
+    else
+      s = fmt_real(x)
+      if (len(s) > 2) then
+        if (s(len(s) - 1:) == '.0') s = s(:len(s) - 2) ! a bound reads better as 10 than 10.0
+      end if
+    end if
+  end function bound
+
+  !> 'real', 'integer', 'logical', 'string' or 'choice'.
+  function type_name(k) result(s)
+    type(key_t), intent(in) :: k
+    character(len=:), allocatable :: s
+    select case (k%kind)
+    case (KEY_REAL)
+      s = 'real'
+    case (KEY_INTEGER)
+      s = 'integer'
+    case (KEY_LOGICAL)
+      s = 'logical'
+    case (KEY_STRING)
+      s = 'string'
+    case default
+      s = 'choice'
+    end select
+  end function type_name
+
+  !> The shortest decimal text that reads back to exactly `x`, with a decimal point or an
+  !! exponent so that it reads as a real: 2.0, 0.004, 0.135526, 1.0e-7, -3.5e20.
+  function fmt_real(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=40) :: buf
+    character(len=16) :: fmt
+    character(len=:), allocatable :: digits
+    integer :: d, e, p, ios
+    real(wp) :: y
+    if (abs(x) <= 0.0_wp) then
+      s = '0.0'
+      return
+    else if (.not. ieee_is_finite(x)) then
+      write (buf, *) x
+      s = trim(adjustl(buf))
+      return
+    end if
+    do d = 1, 17
+      write (fmt, '(a,i0,a)') '(es40.', d, 'e3)'
+      write (buf, fmt) abs(x)
+      read (buf, *, iostat=ios) y
+      if (ios == 0 .and. transfer(y, 0_int64) == transfer(abs(x), 0_int64)) exit ! bitwise
+    end do
+    buf = adjustl(buf)
+    p = index(buf, 'E')
+    read (buf(p + 1:), *) e
+    digits = buf(1:1)//buf(3:p - 1) ! mantissa d.ddd without its point
+    do while (len(digits) > 1 .and. digits(len(digits):) == '0')
+      digits = digits(:len(digits) - 1)
+    end do
+    if (e >= 0 .and. e < 16) then
+      if (len(digits) <= e + 1) then
+        s = digits//repeat('0', e + 1 - len(digits))//'.0'
+      else
+        s = digits(:e + 1)//'.'//digits(e + 2:)
+      end if
+    else if (e < 0 .and. e >= -4) then
+      s = '0.'//repeat('0', -e - 1)//digits
+    else if (len(digits) == 1) then
+      s = digits//'.0e'//itoa(e)
+    else
+      s = digits(1:1)//'.'//digits(2:)//'e'//itoa(e)
+    end if
+    if (x < 0.0_wp) s = '-'//s
+  end function fmt_real
+
+  ! ---------------------------------------------------------------- small helpers
+
+  function quoted(s) result(q)
+    character(len=*), intent(in) :: s
+    character(len=:), allocatable :: q
+    integer :: j
+    q = ''''
+    do j = 1, len(s)
+      q = q//s(j:j)
+      if (s(j:j) == '''') q = q//'''' ! a quote inside a string is doubled
+    end do
+    q = q//''''
+  end function quoted
+
+  function itoa(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=12) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function itoa
+
+  !> Collapse runs of blanks to one (used to tidy range texts built from fixed pieces).
+  function squeeze(t) result(s)
+    character(len=*), intent(in) :: t
+    character(len=:), allocatable :: s
+    integer :: j
+    s = ''
+    do j = 1, len_trim(t)
+      if (t(j:j) == ' ' .and. len(s) > 0) then
+        if (s(len(s):) == ' ') cycle
+      end if
+      s = s//t(j:j)
+    end do
+  end function squeeze
+
+  pure function lower_case(s) result(t)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: t
+    integer :: j
+    t = s
+    do j = 1, len(s)
+      if (s(j:j) >= 'A' .and. s(j:j) <= 'Z') t(j:j) = achar(iachar(s(j:j)) + 32)
+    end do
+  end function lower_case
+
+  !> The keys of group `g`, blank-separated.
+  function group_keys(reg, g) result(s)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: g
+    character(len=:), allocatable :: s
+    integer :: j
+    s = ''
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%group == g) s = trim(adjustl(s//' '//reg%keys(j)%name))
+    end do
+  end function group_keys
+
+  !> Word `i` of blank-separated `list` ('' past the end).
+  function word(list, i) result(w)
+    character(len=*), intent(in) :: list
+    integer, intent(in) :: i
+    character(len=:), allocatable :: w
+    integer :: p, q, j
+    w = ''
+    p = 1
+    q = 0
+    do j = 1, i
+      p = q + verify(list(q + 1:), ' ')
+      if (p == q) return
+      q = p - 1 + index(list(p:)//' ', ' ') - 1
+    end do
+    w = list(p:q)
+  end function word
+
+  !> Position of `w` among the words of `list`, 0 if absent.
+  integer function word_index(list, w) result(idx)
+    character(len=*), intent(in) :: list, w
+    idx = 1
+    do while (len(word(list, idx)) > 0)
+      if (word(list, idx) == w) return
+      idx = idx + 1
+    end do
+    idx = 0
+  end function word_index
+
+  !> The words of `list` joined by ', ', each between `pre` and `post`.
+  function join(list, pre, post) result(s)
+    character(len=*), intent(in) :: list, pre, post
+    character(len=:), allocatable :: s
+    integer :: j
+    s = ''
+    j = 1
+    do while (len(word(list, j)) > 0)
+      if (j > 1) s = s//', '
+      s = s//pre//word(list, j)//post
+      j = j + 1
+    end do
+  end function join
+
+  !> '; did you mean <pre>x<post>?' for the word of `list` closest to `w` by edit distance, if
+  !! it is close enough to be a likely misspelling; '' otherwise.
+  function suggest(w, list, pre, post) result(s)
+    character(len=*), intent(in) :: w, list, pre, post
+    character(len=:), allocatable :: s
+    integer :: j, d, best
+    s = ''
+    best = max(2, (len(w) + 1)/2) + 1
+    j = 1
+    do while (len(word(list, j)) > 0)
+      d = edit_distance(w, word(list, j))
+      if (d < best) then
+        best = d
+        s = '; did you mean '//pre//word(list, j)//post//'?'
+      end if
+      j = j + 1
+    end do
+  end function suggest
+
+  !> Levenshtein distance: insertions, deletions and substitutions needed to turn a into b.
+  pure integer function edit_distance(a, b) result(d)
+    character(len=*), intent(in) :: a, b
+    integer :: prev(0:len(b)), row(0:len(b)), i, j
+    prev = [(j, j=0, len(b))]
+    do i = 1, len(a)
+      row(0) = i
+      do j = 1, len(b)
+        row(j) = min(prev(j) + 1, row(j - 1) + 1, prev(j - 1) + merge(0, 1, a(i:i) == b(j:j)))
+      end do
+      prev = row
+    end do
+    d = prev(len(b))
+  end function edit_distance
+
+end module dkt_registry

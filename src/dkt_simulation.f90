@@ -1,0 +1,303 @@
+!> A flow simulation on MPI slabs: set-up from the configuration, the time loop, output.
+!> The time loop (simulation_run) reads like SPEC §1–2: exchange, boundary ghosts, fused
+!> stream–collide, open ends, guards, output.
+module dkt_simulation
+  use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size
+  use iso_fortran_env, only: compiler_version
+  use dkt_kinds, only: wp, i8, pi, cs2
+  use dkt_errors, only: fatal_all, fatal_local, EXIT_RUNTIME
+  use dkt_config, only: config_t, lattice_params_t, config_to_namelist, config_output_dir
+  use dkt_lattice, only: equilibrium
+  use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
+  use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
+                        MIN_SLAB_ROWS
+  use dkt_boundary, only: boundary_t, boundary_init, fill_local_ghosts, fill_halo_ghosts, &
+                          apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
+  use dkt_fields, only: macroscopic, vorticity
+  use dkt_diagnostics, only: guard_check
+  use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close
+  use dkt_log, only: log_line, log_open, log_close
+  use dkt_filesystem, only: make_directories
+  use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
+  implicit none
+  private
+  public :: simulation_t, simulation_setup, simulation_summary, simulation_open_output, &
+            simulation_run, simulation_finish
+
+  character(len=*), parameter :: field_names(5) = &
+                                 [character(len=9) :: 'rho', 'ux', 'uy', 'vorticity', 'pressure']
+
+  type :: simulation_t
+    type(config_t) :: cfg
+    type(lattice_params_t) :: lp
+    type(domain_t) :: dom
+    type(boundary_t) :: bc
+    type(collision_t) :: coll
+    real(wp), pointer, contiguous :: f(:, :, :) => null()      !! post-collision f*(t)
+    real(wp), pointer, contiguous :: f_next(:, :, :) => null() !! f*(t + dt), written by the sweep
+    type(io_t) :: io
+    logical :: output_open = .false.
+    integer :: step = 0
+  end type simulation_t
+
+contains
+
+  integer function end_kind(name)
+    character(len=*), intent(in) :: name
+    select case (trim(name))
+    case ('periodic'); end_kind = END_PERIODIC
+    case ('velocity'); end_kind = END_VELOCITY
+    case ('outflow'); end_kind = END_OUTFLOW
+    case default; end_kind = END_WALL
+    end select
+  end function end_kind
+
+  !> Decompose, allocate the two lattices and set the initial state. Every rank calls it; a
+  !! decomposition that cannot work stops all ranks with the largest rank count that does.
+  subroutine simulation_setup(sim, cfg, lp, comm)
+    type(simulation_t), intent(inout) :: sim
+    type(config_t), intent(in) :: cfg
+    type(lattice_params_t), intent(in) :: lp
+    type(MPI_Comm), intent(in) :: comm
+    character(len=:), allocatable :: err
+    logical :: periodic_x, periodic_y
+
+    sim%cfg = cfg
+    sim%lp = lp
+    periodic_x = cfg%domain%sides == 'periodic'
+    periodic_y = cfg%domain%lower == 'periodic'
+    call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, MIN_SLAB_ROWS, err)
+    if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
+    call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
+                       end_kind(cfg%domain%upper), lp%u_in_lb, cfg%inlet%profile == 'parabolic', &
+                       cfg%inlet%ramp_time/lp%dt)
+    call collision_init(sim%coll, lp%tau, cfg%lbm%collision == 'bgk', lp%s(1), lp%s(2), &
+                        lp%s(4), lp%force_lb)
+    allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+    allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+    call initialise(sim)
+  end subroutine simulation_setup
+
+  !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
+  subroutine initialise(sim)
+    type(simulation_t), intent(inout) :: sim
+    integer :: x, j, jg
+    real(wp) :: kx, ky, u0, xc, yc, ux, uy, p
+    ! first touch of every entry, ghosts and padding included, so no garbage is ever read
+    sim%f = 0.0_wp
+    sim%f_next = 0.0_wp
+    select case (trim(sim%cfg%initial%flow))
+    case ('taylor_green')
+      ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
+      kx = 2.0_wp*pi/real(sim%lp%nx, wp)
+      ky = 2.0_wp*pi/real(sim%lp%ny, wp)
+      u0 = sim%lp%u_init_lb
+      do j = 1, sim%dom%nyl
+        jg = sim%dom%y0 + j
+        do x = 1, sim%lp%nx
+          xc = real(x, wp) - 0.5_wp
+          yc = real(jg, wp) - 0.5_wp
+          ux = -u0*cos(kx*xc)*sin(ky*yc)
+          uy = u0*sin(kx*xc)*cos(ky*yc)
+          p = -0.25_wp*u0*u0*(cos(2.0_wp*kx*xc) + cos(2.0_wp*ky*yc))
+          sim%f(x, j, :) = equilibrium(1.0_wp + p/cs2, ux, uy)
+        end do
+      end do
+    case default
+      do j = 1, sim%dom%nyl
+        do x = 1, sim%lp%nx
+          sim%f(x, j, :) = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
+        end do
+      end do
+    end select
+  end subroutine initialise
+
+  !> The derived lattice parameters, sizes and models of the run, printed by rank 0 before it
+  !! starts (and by --check instead of running).
+  subroutine simulation_summary(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=256) :: line
+    real(wp) :: s(0:8), lattice_mib, output_mib
+    integer :: k
+    associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
+      call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
+      write (line, '(a,a,a,i0,a)') 'scene ', trim(cfg%file), ' on ', dom%nranks, ' ranks'
+      call log_line(trim(line))
+      write (line, '(a,es12.5,a,es12.5,a,f8.5,a,es12.5)') 'lattice: dx = ', lp%dx, ' cm, dt = ', &
+        lp%dt, ' s, tau = ', lp%tau, ', nu = ', lp%nu_lb
+      call log_line(trim(line)//' (lattice units)')
+      s = collision_describe(sim%coll)
+      write (line, '(a,9(1x,f7.4))') 'rates s_0..s_8 (rho e eps jx qx jy qy pxx pxy):', s
+      call log_line(trim(line))
+      write (line, '(a,es10.3,a,f7.4,a,es10.3)') 'velocity scale ', lp%u_scale_lb*lp%dx/lp%dt, &
+        ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
+      call log_line(trim(line))
+      write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
+        int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
+      call log_line(trim(line))
+      lattice_mib = 2.0_wp*9.0_wp*real(dom%nxp, wp)*real(dom%nyl + 2, wp)*8.0_wp/2.0_wp**20
+      output_mib = 6.0_wp*real(dom%nx, wp)*real(dom%nyl, wp)*8.0_wp/2.0_wp**20
+      write (line, '(a,f10.2,a,f8.2,a)') 'memory per rank: lattices ', lattice_mib, &
+        ' MiB, output buffers ', output_mib, ' MiB while writing; particles: none; window: none'
+      call log_line(trim(line))
+      line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
+      line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
+             trim(cfg%domain%lower)//', upper end '//trim(cfg%domain%upper)
+      if (sim%coll%forced) line = trim(line)//', body force'
+      if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
+        line = trim(line)//', inlet '//trim(cfg%inlet%profile)
+      if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
+      call log_line(trim(line)//'; particles off; window off')
+      k = lp%field_every
+      if (k > 0) then
+        write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
+      else
+        line = 'fields at the end'
+      end if
+      call log_line(trim(line)//' into '//config_output_dir(cfg)//'/'//cfg%name//'.h5')
+    end associate
+  end subroutine simulation_summary
+
+  !> Create the output directory and file, and store the run's metadata. Called only after
+  !! every input check passed, so a bad input writes nothing.
+  subroutine simulation_open_output(sim)
+    type(simulation_t), intent(inout) :: sim
+    character(len=:), allocatable :: dir, err, nml
+    character(len=64) :: pnames(12)
+    real(wp) :: pvalues(12), s(0:8)
+    logical :: ok
+
+    dir = config_output_dir(sim%cfg)
+    err = ''
+    if (sim%dom%rank == 0) call make_directories(dir, err)
+    ok = len(err) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! only rank 0 knows the reason; it is the rank that prints
+    if (.not. ok) call fatal_all('output.dir = '''//dir//''': '//err// &
+                                 '; choose a writable output.dir')
+    call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
+                 sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
+    if (len(err) > 0) call fatal_all('output.dir = '''//dir//''': '//err)
+    sim%output_open = .true.
+    call log_open(dir//'/'//sim%cfg%name//'.log', err)
+    if (len(err) > 0) call fatal_local(err)
+
+    call config_to_namelist(sim%cfg, nml)
+    s = collision_describe(sim%coll)
+    pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
+              'nx', 'ny', 'steps', 'mach']
+    pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
+               real(sim%lp%nx, wp), real(sim%lp%ny, wp), real(sim%lp%steps, wp), sim%lp%mach]
+    call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
+                      compiler_version(), dkt_build_flags, pnames, pvalues)
+  end subroutine simulation_open_output
+
+  !> The time loop.
+  subroutine simulation_run(sim)
+    type(simulation_t), intent(inout) :: sim
+    real(wp), pointer, contiguous :: tmp(:, :, :)
+    integer :: n, nyl, nx, nxp, last_progress
+    real(wp) :: t, mach, t_start, t_last
+    character(len=256) :: line
+
+    nx = sim%dom%nx
+    nyl = sim%dom%nyl
+    nxp = sim%dom%nxp
+    associate (lp => sim%lp, cfg => sim%cfg)
+      if (lp%field_every > 0) call write_fields(sim, 0)
+      t_start = MPI_Wtime()
+      t_last = t_start
+      last_progress = 0
+      do n = 1, lp%steps
+        ! E1-E5: exchange the crossing populations while the rows that do not need them are
+        ! swept, then the two rows next to the slab faces
+        call halo_start(sim%dom, sim%f)
+        call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+        call halo_finish(sim%dom, sim%f)
+        call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
+        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+        call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+        tmp => sim%f
+        sim%f => sim%f_next
+        sim%f_next => tmp
+        sim%step = n
+        t = n*lp%dt
+
+        if (mod(n, cfg%run%guard_every) == 0 .or. n == lp%steps) &
+          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
+        if (lp%field_every > 0) then
+          if (mod(n, lp%field_every) == 0 .and. n /= lp%steps) call write_fields(sim, n)
+        end if
+        if (cfg%run%progress_every > 0) then
+          if (mod(n, cfg%run%progress_every) == 0 .and. n /= lp%steps) then
+            ! the progress line reports the current Mach number, which the guard measures
+            if (mod(n, cfg%run%guard_every) /= 0) &
+              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
+            call progress(n, last_progress, t_last, t_start, mach)
+          end if
+        end if
+      end do
+      t = MPI_Wtime() - t_start
+      write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
+        real(lp%nx, wp)*real(lp%ny, wp)*real(lp%steps, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
+        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', lp%steps, ' steps in ', t, ' s on ', &
+        sim%dom%nranks, ' ranks)'
+      call write_fields(sim, lp%steps)
+      call log_line(trim(line))
+    end associate
+  contains
+    subroutine progress(n, last, t_last, t_start, mach)
+      integer, intent(in) :: n
+      integer, intent(inout) :: last
+      real(wp), intent(inout) :: t_last
+      real(wp), intent(in) :: t_start, mach
+      real(wp) :: now, mlups, eta
+      integer :: h, m, s
+      now = MPI_Wtime()
+      mlups = real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - last, wp)/ &
+              max(now - t_last, 1.0e-9_wp)/1.0e6_wp
+      eta = (now - t_start)/real(n, wp)*real(sim%lp%steps - n, wp)
+      h = int(eta)/3600
+      m = mod(int(eta), 3600)/60
+      s = mod(int(eta), 60)
+      write (line, '(a,i0,a,i0,a,es11.4,a,f9.4,a,f7.4,a,f9.2,a,i0,a,i2.2,a,i2.2)') 'step ', n, &
+        '/', sim%lp%steps, '  t = ', n*sim%lp%dt, ' s  t* = ', n*sim%lp%dt/sim%cfg%run%t_ref, &
+        '  Ma = ', mach, '  MLUPS ', mlups, '  ETA ', h, ':', m, ':', s
+      call log_line(trim(line))
+      last = n
+      t_last = now
+    end subroutine progress
+  end subroutine simulation_run
+
+  !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
+  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
+  subroutine write_fields(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), allocatable :: fld(:, :, :)
+    real(wp) :: uc
+    associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+      allocate (fld(nx, nyl, 5))
+      call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
+      call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
+      uc = lp%dx/lp%dt
+      fld(:, :, 5) = cs2*(fld(:, :, 1) - 1.0_wp)*sim%cfg%fluid%density*uc*uc
+      fld(:, :, 1) = fld(:, :, 1)*sim%cfg%fluid%density
+      fld(:, :, 2:3) = fld(:, :, 2:3)*uc
+      fld(:, :, 4) = fld(:, :, 4)/lp%dt
+      call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names, fld)
+    end associate
+  end subroutine write_fields
+
+  subroutine simulation_finish(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (sim%output_open) call io_close(sim%io)
+    sim%output_open = .false.
+    call log_close()
+    deallocate (sim%f, sim%f_next)
+    call domain_free(sim%dom)
+  end subroutine simulation_finish
+
+end module dkt_simulation

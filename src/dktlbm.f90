@@ -1,0 +1,83 @@
+!> dktlbm: particles settling in a 2-D channel, D2Q9 MRT lattice Boltzmann on MPI slabs.
+!> The driver: read and check the input, set up, run, finish.
+program dktlbm
+  use iso_fortran_env, only: output_unit
+  use mpi_f08, only: MPI_Init, MPI_Finalize, MPI_COMM_WORLD, MPI_Comm_rank, MPI_Bcast, &
+                     MPI_INTEGER, MPI_CHARACTER
+  use dkt_errors, only: fatal_all
+  use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
+                        config_load, derive_lattice, config_to_namelist, print_help
+  use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
+                            simulation_open_output, simulation_run, simulation_finish
+  use dkt_version, only: dkt_version_string, dkt_git_revision
+  implicit none
+
+  type(cli_t) :: cli
+  type(config_t) :: cfg
+  type(lattice_params_t) :: lp
+  type(simulation_t) :: sim
+  character(len=:), allocatable :: err, text
+  integer :: rank
+
+  call MPI_Init()
+  call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+
+  call parse_command_line(cli, err)
+  if (len(err) > 0) call fatal_all(err)
+  if (cli%help .or. cli%version .or. cli%print_defaults) then
+    if (rank == 0) call print_info(cli)
+    call MPI_Finalize()
+    stop
+  end if
+
+  call read_input(cli%nml_file, text)
+  call config_load(cfg, text, cli%nml_file, cli%overrides, err)
+  if (len(err) > 0) call fatal_all(err)
+  call derive_lattice(cfg, lp, err)
+  if (len(err) > 0) call fatal_all(err)
+
+  call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD)
+  call simulation_summary(sim)
+  if (.not. cli%check) then
+    call simulation_open_output(sim)
+    call simulation_run(sim)
+  end if
+  call simulation_finish(sim)
+  call MPI_Finalize()
+
+contains
+
+  !> Rank 0 reads the namelist file and sends its text to every rank, so all ranks validate
+  !! the same input and stop together on an error.
+  subroutine read_input(path, text)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: text
+    character(len=:), allocatable :: err
+    integer :: n
+    n = -1
+    err = ''
+    if (rank == 0) then
+      call read_text_file(path, text, err)
+      if (len(err) == 0) n = len(text)
+    end if
+    call MPI_Bcast(n, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
+    if (n < 0) call fatal_all(err)
+    if (rank /= 0) allocate (character(len=n) :: text)
+    if (n > 0) call MPI_Bcast(text, n, MPI_CHARACTER, 0, MPI_COMM_WORLD)
+  end subroutine read_input
+
+  subroutine print_info(cli)
+    type(cli_t), intent(in) :: cli
+    type(config_t) :: defaults
+    character(len=:), allocatable :: nml
+    if (cli%help) then
+      call print_help(output_unit)
+    else if (cli%version) then
+      write (output_unit, '(a)') 'dktlbm '//dkt_version_string//' ('//dkt_git_revision//')'
+    else
+      call config_to_namelist(defaults, nml)
+      write (output_unit, '(a)', advance='no') nml
+    end if
+  end subroutine print_info
+
+end program dktlbm

@@ -1,0 +1,82 @@
+"""Helpers for tests that run the dktlbm executable: launch it on N ranks, read its HDF5 file."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(os.environ.get("DKTLBM_ROOT", Path(__file__).resolve().parents[1]))
+EXE = Path(os.environ.get("DKTLBM_EXE", ROOT / "build" / "dktlbm"))
+INPUT = ROOT / "input"
+
+
+def mpi_command(ranks: int) -> list[str]:
+    """The mpiexec prefix for `ranks` processes (as root, oversubscribed, like ctest sets it)."""
+    mpiexec = os.environ.get("MPIEXEC", "mpiexec")
+    flag = os.environ.get("MPIEXEC_NUMPROC_FLAG", "-n")
+    pre = shlex.split(os.environ.get("MPIEXEC_PREFLAGS", "--oversubscribe"))
+    return [mpiexec, flag, str(ranks), *pre]
+
+
+def mpi_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
+    return env
+
+
+def run(
+    nml: str | Path,
+    ranks: int = 1,
+    sets: list[str] | None = None,
+    outdir: Path | None = None,
+    extra: list[str] | None = None,
+    timeout: float = 300.0,
+    check: bool = True,
+) -> subprocess.CompletedProcess[str]:
+    """Run dktlbm on `nml` (a name in input/ or a path) with --set overrides."""
+    path = Path(nml)
+    if not path.exists():
+        path = INPUT / nml
+    args = [str(EXE), str(path)]
+    for s in sets or []:
+        args += ["--set", s]
+    if outdir is not None:
+        args += ["--set", f"output.dir={outdir}"]
+    args += extra or []
+    proc = subprocess.run(
+        mpi_command(ranks) + args,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=mpi_env(),
+    )
+    if check and proc.returncode != 0:
+        raise AssertionError(
+            f"dktlbm failed ({proc.returncode}): {' '.join(args)}\n{proc.stdout}\n{proc.stderr}"
+        )
+    return proc
+
+
+def last_fields(h5file: Path) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """The last field group of a run file: arrays (ny, nx) by name, and the group attributes."""
+    import h5py
+
+    with h5py.File(h5file, "r") as h5:
+        groups = sorted(h5["fields"].keys())
+        g = h5["fields"][groups[-1]]
+        fields = {name: g[name][()] for name in g.keys()}
+        attrs = {k: float(np.asarray(v).ravel()[0]) for k, v in g.attrs.items()}
+    return fields, attrs
+
+
+def run_attr(h5file: Path, name: str) -> float:
+    import h5py
+
+    with h5py.File(h5file, "r") as h5:
+        return float(np.asarray(h5["run"].attrs[name]).ravel()[0])

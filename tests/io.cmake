@@ -1,0 +1,11 @@
+# dkt_io: parallel HDF5 fields, /run metadata, time series and the XDMF sidecar.
+# test_io_prog writes the files on 1-4 ranks (uneven slabs, one rank without rows);
+# test_io_readback.py runs it and reads them back with h5py.
+add_executable(test_io_prog "${CMAKE_CURRENT_LIST_DIR}/test_io.f90")
+target_link_libraries(test_io_prog PRIVATE dktlbm_core)
+set_target_properties(test_io_prog PROPERTIES
+  RUNTIME_OUTPUT_DIRECTORY "${CMAKE_CURRENT_BINARY_DIR}"
+  Fortran_MODULE_DIRECTORY "${CMAKE_BINARY_DIR}/mod/tests/test_io_prog")
+dkt_set_fortran_flags(test_io_prog)
+dkt_add_pytest(NAME io_readback FILE tests/test_io_readback.py LABELS mpi PROCESSORS 4
+  ENV "DKT_TEST_IO_EXE=$<TARGET_FILE:test_io_prog>")

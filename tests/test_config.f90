@@ -1,0 +1,462 @@
+!> Unit tests of module dkt_config: namelist text and --set overrides in, configuration or a
+!> clear error out. No files and no MPI: every namelist is a string given to config_load.
+!>
+!> Expected values come from the input contract (notes of the configuration type, SPEC E3/E4)
+!> and from the texts the tests write, never from the program's own output.
+program test_config
+  use, intrinsic :: iso_fortran_env, only: int64
+  use dkt_kinds, only: wp
+  use dkt_config, only: config_t, lattice_params_t, cli_t, config_load, config_validate, &
+                        derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
+                        config_output_dir
+  implicit none
+
+  character(len=*), parameter :: NL = new_line('a')
+  character(len=*), parameter :: FILE = 'input/test.nml'
+  character(len=1) :: none(0) !! no overrides
+  integer :: n_pass = 0, n_fail = 0
+
+  call test_defaults()
+  call test_value_forms()
+  call test_arrays_strings_logicals()
+  call test_syntax_forms()
+  call test_overrides()
+  call test_round_trip()
+  call test_cross_checks_accept()
+  call test_derive_lattice()
+  call test_command_line()
+  call test_errors()
+
+  write (*, '(i0,a,i0,a)') n_pass, ' passed, ', n_fail, ' failed'
+  if (n_fail > 0) error stop 1
+
+contains
+
+  subroutine check(name, ok)
+    character(len=*), intent(in) :: name
+    logical, intent(in) :: ok
+    if (ok) then
+      n_pass = n_pass + 1
+      write (*, '(a)') 'PASS '//name
+    else
+      n_fail = n_fail + 1
+      write (*, '(a)') 'FAIL '//name
+    end if
+  end subroutine check
+
+  !> Exact equality, bit for bit: a value read from text must be the very same real.
+  elemental logical function same(a, b)
+    real(wp), intent(in) :: a, b
+    same = transfer(a, 0_int64) == transfer(b, 0_int64)
+  end function same
+
+  logical function close_to(a, b)
+    real(wp), intent(in) :: a, b
+    close_to = abs(a - b) <= 1.0e-12_wp*max(abs(a), abs(b), tiny(1.0_wp))
+  end function close_to
+
+  !> Load `text` (plus overrides); report a failed check with the error if it is not accepted.
+  subroutine load_ok(name, text, cfg, overrides)
+    character(len=*), intent(in) :: name, text
+    type(config_t), intent(out) :: cfg
+    character(len=*), intent(in), optional :: overrides(:)
+    character(len=:), allocatable :: err
+    if (present(overrides)) then
+      call config_load(cfg, text, FILE, overrides, err)
+    else
+      call config_load(cfg, text, FILE, none, err)
+    end if
+    if (len(err) > 0) write (*, '(a)') '  unexpected error: '//err
+    call check(name//' is accepted', len(err) == 0)
+  end subroutine load_ok
+
+  !> `text` (plus overrides) must be refused with a message holding every one of `parts`.
+  subroutine expect_error(name, text, parts, overrides)
+    character(len=*), intent(in) :: name, text
+    character(len=*), intent(in) :: parts(:)
+    character(len=*), intent(in), optional :: overrides(:)
+    type(config_t) :: cfg
+    character(len=:), allocatable :: err
+    if (present(overrides)) then
+      call config_load(cfg, text, FILE, overrides, err)
+    else
+      call config_load(cfg, text, FILE, none, err)
+    end if
+    call expect_parts(name, err, parts)
+  end subroutine expect_error
+
+  subroutine expect_parts(name, err, parts)
+    character(len=*), intent(in) :: name, err
+    character(len=*), intent(in) :: parts(:)
+    logical :: ok
+    integer :: j
+    ok = len(err) > 0
+    do j = 1, size(parts)
+      if (index(err, trim(parts(j))) == 0) then
+        ok = .false.
+        write (*, '(a)') '  missing '''//trim(parts(j))//''' in: '//err
+      end if
+    end do
+    if (len(err) == 0) write (*, '(a)') '  no error was reported'
+    call check(name, ok)
+  end subroutine expect_parts
+
+  subroutine test_defaults()
+    type(config_t) :: cfg
+    call load_ok('empty namelist', '', cfg)
+    ! The documented defaults of the configuration contract.
+    call check('default domain 2 x 5 cm, walls', same(cfg%domain%width, 2.0_wp) .and. &
+               same(cfg%domain%height, 5.0_wp) .and. cfg%domain%sides == 'wall' .and. &
+               cfg%domain%lower == 'wall' .and. cfg%domain%upper == 'wall')
+    call check('default fluid rho 1, mu 0.01, no body force', &
+               same(cfg%fluid%density, 1.0_wp) .and. same(cfg%fluid%viscosity, 0.01_wp) .and. &
+               all(same(cfg%fluid%body_force, 0.0_wp)))
+    call check('default lbm dx 0.004, tau 0.65, mrt with paper rates', &
+               same(cfg%lbm%dx, 0.004_wp) .and. same(cfg%lbm%tau, 0.65_wp) .and. &
+               cfg%lbm%collision == 'mrt' .and. same(cfg%lbm%s_e, 1.1_wp) .and. &
+               same(cfg%lbm%s_eps, 1.25_wp) .and. same(cfg%lbm%s_q, 0.0_wp))
+    call check('default run t_end 1 s, steps 0, guards every 100', &
+               same(cfg%run%t_end, 1.0_wp) .and. cfg%run%steps == 0 .and. &
+               cfg%run%guard_every == 100 .and. &
+               cfg%run%progress_every == 1000 .and. same(cfg%run%mach_limit, 0.3_wp))
+    call check('default output dir empty, no overwrite', cfg%output%dir == '' .and. &
+               .not. cfg%output%overwrite .and. same(cfg%output%field_interval, 0.0_wp))
+    call check('file and name kept: input/test.nml -> test', cfg%file == FILE .and. &
+               cfg%name == 'test')
+    call check('output dir defaults to runs/<name>', config_output_dir(cfg) == 'runs/test')
+
+    call load_ok('one key set', '&lbm tau = 0.8 /', cfg)
+    call check('the key set changes, the others keep defaults', same(cfg%lbm%tau, 0.8_wp) .and. &
+               same(cfg%lbm%dx, 0.004_wp) .and. same(cfg%domain%width, 2.0_wp))
+  end subroutine test_defaults
+
+  subroutine test_value_forms()
+    type(config_t) :: cfg
+    call load_ok('real written 1', '&inlet velocity = 1 /', cfg)
+    call check('real 1 reads as 1.0', same(cfg%inlet%velocity, 1.0_wp))
+    call load_ok('real written 1.5', '&inlet velocity = 1.5 /', cfg)
+    call check('real 1.5', same(cfg%inlet%velocity, 1.5_wp))
+    call load_ok('real written 1e-3', '&inlet velocity = 1e-3 /', cfg)
+    call check('real 1e-3', same(cfg%inlet%velocity, 1.0e-3_wp))
+    call load_ok('real written 1.5d0', '&inlet velocity = 1.5d0 /', cfg)
+    call check('real 1.5d0', same(cfg%inlet%velocity, 1.5_wp))
+    call load_ok('real written -2.5E+2', '&inlet velocity = -2.5E+2 /', cfg)
+    call check('real -2.5E+2', same(cfg%inlet%velocity, -250.0_wp))
+    call load_ok('real written .25', '&inlet velocity = .25 /', cfg)
+    call check('real .25', same(cfg%inlet%velocity, 0.25_wp))
+    call load_ok('integer', '&run steps = 42 /', cfg)
+    call check('integer 42', cfg%run%steps == 42)
+  end subroutine test_value_forms
+
+  subroutine test_arrays_strings_logicals()
+    type(config_t) :: cfg
+    call load_ok('array as list', '&fluid body_force = 1.5, -2 /', cfg)
+    call check('array list fills both elements', &
+               all(same(cfg%fluid%body_force, [1.5_wp, -2.0_wp])))
+    call load_ok('array list separated by blanks', '&fluid body_force = 3 4 /', cfg)
+    call check('blank-separated list', all(same(cfg%fluid%body_force, [3.0_wp, 4.0_wp])))
+    call load_ok('array element', '&fluid body_force(2) = -9.5 /', cfg)
+    call check('element 2 set, element 1 default', &
+               all(same(cfg%fluid%body_force, [0.0_wp, -9.5_wp])))
+    call load_ok('array null value', '&fluid body_force = 7, 8'//NL//'body_force = , 2 /', cfg)
+    call check('a null value leaves the element', &
+               all(same(cfg%fluid%body_force, [7.0_wp, 2.0_wp])))
+
+    call load_ok('string in single quotes', '&output dir = ''runs/a b'' /', cfg)
+    call check('single-quoted string with a blank', cfg%output%dir == 'runs/a b')
+    call load_ok('string in double quotes', '&output dir = "it''s" /', cfg)
+    call check('double-quoted string with a quote', cfg%output%dir == 'it''s')
+    call load_ok('doubled quote', '&output dir = ''it''''s'' /', cfg)
+    call check('doubled quote inside a string', cfg%output%dir == 'it''s')
+    call load_ok('string with ! and /', '&output dir = ''a!b/c'' /', cfg)
+    call check('! and / inside a string are text', cfg%output%dir == 'a!b/c')
+    call load_ok('choice in capitals', '&lbm collision = ''BGK'' /', cfg)
+    call check('choice compared without case', cfg%lbm%collision == 'bgk')
+
+    call load_ok('logical .true.', '&output overwrite = .true. /', cfg)
+    call check('logical .true.', cfg%output%overwrite)
+    call load_ok('logical F', '&output overwrite = .true., overwrite = F /', cfg)
+    call check('logical F (and a repeated key: last wins)', (.not. cfg%output%overwrite))
+    call load_ok('logical T', '&output overwrite = T /', cfg)
+    call check('logical T', cfg%output%overwrite)
+    call load_ok('logical true', '&output overwrite = true /', cfg)
+    call check('logical true', cfg%output%overwrite)
+    call load_ok('logical .FALSE.', '&output overwrite = true, overwrite = .FALSE. /', cfg)
+    call check('logical .FALSE.', (.not. cfg%output%overwrite))
+    call load_ok('logical false', '&output overwrite = true, overwrite = false /', cfg)
+    call check('logical false', (.not. cfg%output%overwrite))
+  end subroutine test_arrays_strings_logicals
+
+  subroutine test_syntax_forms()
+    type(config_t) :: cfg
+    character(len=:), allocatable :: text
+    character(len=*), parameter :: CR = achar(13)
+    text = '! a scene'//NL// &
+           '&LBM  TAU = 0.7,  ! relaxation'//NL// &
+           '      Dx = 0.002'//NL// &
+           '      ! tau = 0.9 is a comment'//NL// &
+           '/'//NL// &
+           '&domain sides = ''periodic'', width = 1.0 &end'//CR//NL// &
+           '&fluid'//CR//NL//'  viscosity = 0.02'//CR//NL//'/'//CR//NL
+    call load_ok('upper case, comments, &end, CRLF', text, cfg)
+    call check('names are case-insensitive', &
+               same(cfg%lbm%tau, 0.7_wp) .and. same(cfg%lbm%dx, 0.002_wp))
+    call check('comment lines are ignored', same(cfg%lbm%tau, 0.7_wp))
+    call check('&end closes a group', cfg%domain%sides == 'periodic' .and. &
+               same(cfg%domain%width, 1.0_wp))
+    call check('CR LF line ends', same(cfg%fluid%viscosity, 0.02_wp))
+    call load_ok('groups repeated, keys given twice', &
+                 '&lbm tau = 0.7 / &lbm tau = 0.9, tau = 0.75 /', cfg)
+    call check('the last value of a repeated key wins', same(cfg%lbm%tau, 0.75_wp))
+  end subroutine test_syntax_forms
+
+  subroutine test_overrides()
+    type(config_t) :: cfg
+    call load_ok('overrides', '&lbm tau = 0.8 / &output dir = ''a'' /', cfg, &
+                 [character(len=40) :: 'lbm.tau=0.7', 'fluid.body_force(1)=2.5', &
+                  'output.dir=/tmp/x', 'LBM.Collision=bgk', 'output.overwrite=T'])
+    call check('--set wins over the file', same(cfg%lbm%tau, 0.7_wp))
+    call check('--set of an array element', all(same(cfg%fluid%body_force, [2.5_wp, 0.0_wp])))
+    call check('--set of an unquoted string', cfg%output%dir == '/tmp/x')
+    call check('--set of a choice, any case', cfg%lbm%collision == 'bgk')
+    call check('--set of a logical', cfg%output%overwrite)
+    call load_ok('override of a whole array', '', cfg, [character(len=40) :: &
+                                                        'fluid.body_force=1,2'])
+    call check('--set of a list', all(same(cfg%fluid%body_force, [1.0_wp, 2.0_wp])))
+    call load_ok('override of a quoted string', '', cfg, &
+                 [character(len=40) :: 'output.dir=''/tmp/a b''', 'lbm.tau=0.6', 'lbm.tau=0.9'])
+    call check('--set strips quotes', cfg%output%dir == '/tmp/a b')
+    call check('later --set wins', same(cfg%lbm%tau, 0.9_wp))
+    ! Ranges are checked after the overrides: an override may mend a file value.
+    call load_ok('override mends a bad file value', '&lbm tau = 0.4 /', cfg, &
+                 [character(len=40) :: 'lbm.tau=0.7'])
+  end subroutine test_overrides
+
+  subroutine test_round_trip()
+    type(config_t) :: cfg, back
+    character(len=:), allocatable :: text, text2, err
+    call load_ok('a configuration of non-default values', &
+                 '&domain width = 1.0, height = 3.0, sides = ''periodic'','// &
+                 ' lower = ''velocity'', upper = ''outflow'' /'//NL// &
+                 '&fluid density = 1.3, viscosity = 0.035,'// &
+                 ' body_force = 1.0e-20, -3.3333333333333335 /'//NL// &
+                 '&lbm dx = 0.01, tau = 0.8, collision = ''bgk'', s_q = 1.2 /'//NL// &
+                 '&inlet velocity = -0.7, profile = ''uniform'', ramp_time = 0.1 /'//NL// &
+                 '&run steps = 17, t_ref = 0.3, progress_every = 0, mach_limit = 0.2 /'//NL// &
+                 '&output dir = ''out/it''''s'', field_interval = 0.01, overwrite = T /', cfg)
+    call config_to_namelist(cfg, text)
+    call config_load(back, text, FILE, none, err)
+    call check('config_to_namelist text is read back without error', len(err) == 0)
+    call check('round trip keeps reals exactly', &
+               same(back%fluid%viscosity, cfg%fluid%viscosity) .and. &
+               all(same(back%fluid%body_force, cfg%fluid%body_force)) .and. &
+               same(back%inlet%velocity, -0.7_wp) .and. same(back%run%t_ref, 0.3_wp))
+    call check('round trip keeps strings, choices, logicals, integers', &
+               back%output%dir == 'out/it''s' .and. back%domain%lower == 'velocity' .and. &
+               back%lbm%collision == 'bgk' .and. back%output%overwrite .and. back%run%steps == 17)
+    call config_to_namelist(back, text2)
+    call check('round trip text is stable', text == text2)
+    call check('namelist text has one commented line per key', &
+               index(text, 'tau = 0.8') > 0 .and. index(text, 'default: 0.65') > 0 .and. &
+               index(text, 'allowed: 0.5 < tau <= 10') > 0 .and. index(text, '[cm]') > 0)
+  end subroutine test_round_trip
+
+  subroutine test_cross_checks_accept()
+    type(config_t) :: cfg
+    call load_ok('periodic ends together', &
+                 '&domain lower = ''periodic'', upper = ''periodic'' /', cfg)
+    call load_ok('a velocity end with zero velocity (a moving wall at rest)', &
+                 '&domain lower = ''velocity'', upper = ''outflow'' /', cfg)
+    call load_ok('taylor_green in a periodic box', '&domain sides = ''periodic'', '// &
+                 'lower = ''periodic'', upper = ''periodic'' /'// &
+                 ' &initial flow = ''taylor_green'', velocity = 0.5 /', cfg)
+    call load_ok('three cells across', '&domain width = 0.012 / &lbm dx = 0.004 /', cfg)
+    call load_ok('t_end shorter than t_end/dt but steps given', &
+                 '&run t_end = 1e-12, steps = 5 /', cfg)
+  end subroutine test_cross_checks_accept
+
+  subroutine test_derive_lattice()
+    type(config_t) :: cfg
+    type(lattice_params_t) :: lp
+    character(len=:), allocatable :: err
+    real(wp) :: nu_lb, dt, s_nu, s_q, u_peak
+    call load_ok('lattice scene', '&fluid body_force = 0, -2 / &inlet velocity = 0.5 /', cfg)
+    call derive_lattice(cfg, lp, err)
+    call check('derive_lattice accepts a valid config', len(err) == 0)
+    ! SPEC E3 by hand: nu_lb = (tau - 1/2)/3, dt = nu_lb dx^2 / (mu/rho).
+    nu_lb = (0.65_wp - 0.5_wp)/3.0_wp
+    dt = nu_lb*0.004_wp**2/(0.01_wp/1.0_wp)
+    s_nu = 1.0_wp/0.65_wp
+    s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
+    call check('nu_lb = (tau - 1/2)/3', close_to(lp%nu_lb, nu_lb))
+    call check('dt = nu_lb dx^2 / nu (8e-5 s)', close_to(lp%dt, dt) .and. close_to(dt, 8.0e-5_wp))
+    call check('nx = width/dx = 500, ny = height/dx = 1250', lp%nx == 500 .and. lp%ny == 1250)
+    call check('steps = t_end/dt = 12500', lp%steps == 12500)
+    call check('MRT rates 0, s_e, s_eps, 0, s_q, 0, s_q, 1/tau, 1/tau (E3 rule for s_q)', &
+               same(lp%s(0), 0.0_wp) .and. same(lp%s(3), 0.0_wp) .and. same(lp%s(5), 0.0_wp) .and. &
+               close_to(lp%s(1), 1.1_wp) .and. close_to(lp%s(2), 1.25_wp) .and. &
+               close_to(lp%s(4), s_q) .and. close_to(lp%s(6), s_q) .and. &
+               close_to(lp%s(7), s_nu) .and. close_to(lp%s(8), s_nu))
+    call check('force_lb = g dt^2/dx', same(lp%force_lb(1), 0.0_wp) .and. &
+               close_to(lp%force_lb(2), -2.0_wp*dt**2/0.004_wp))
+    call check('u_in_lb = U dt/dx', close_to(lp%u_in_lb, 0.5_wp*dt/0.004_wp))
+    ! Largest of the inlet speed and the Poiseuille peak g W^2/(8 nu) in lattice units.
+    u_peak = 2.0_wp*dt**2/0.004_wp*500.0_wp**2/(8.0_wp*nu_lb)
+    call check('u_scale_lb is the largest expected speed', &
+               close_to(lp%u_scale_lb, max(0.5_wp*dt/0.004_wp, u_peak)))
+    call check('mach = u_scale / sqrt(1/3)', close_to(lp%mach, lp%u_scale_lb*sqrt(3.0_wp)))
+    call check('reynolds = U W / nu', &
+               close_to(lp%reynolds, lp%u_scale_lb*0.004_wp/dt*2.0_wp/0.01_wp))
+
+    call load_ok('bgk with field output', '&lbm collision = ''bgk'', tau = 0.8 / '// &
+                 '&output field_interval = 0.01 /', cfg)
+    call derive_lattice(cfg, lp, err)
+    dt = (0.3_wp/3.0_wp)*0.004_wp**2/0.01_wp
+    call check('BGK: every rate 1/tau (E4)', all(abs(lp%s - 1.0_wp/0.8_wp) < 1.0e-15_wp))
+    call check('field_every = field_interval/dt', lp%field_every == nint(0.01_wp/dt))
+
+    cfg%lbm%tau = 0.3_wp
+    call config_validate(cfg, err)
+    call expect_parts('config_validate refuses a value changed in code', err, &
+                      [character(len=20) :: '&lbm', 'tau', '0.3'])
+    call derive_lattice(cfg, lp, err)
+    call check('derive_lattice refuses an invalid config', len(err) > 0)
+  end subroutine test_derive_lattice
+
+  subroutine test_command_line()
+    type(cli_t) :: cli
+    character(len=:), allocatable :: err
+    call parse_arguments([character(len=40) :: 'input/case1.nml', '--set', 'lbm.tau=0.7', &
+                          '--set=fluid.body_force(1)=2', '--check'], cli, err)
+    call check('command line: file, --set x, --set=x, --check', len(err) == 0 .and. &
+               cli%nml_file == 'input/case1.nml' .and. size(cli%overrides) == 2 .and. &
+               cli%check .and. .not. cli%print_defaults)
+    call check('command line: overrides in order', cli%overrides(1) == 'lbm.tau=0.7' .and. &
+               cli%overrides(2) == 'fluid.body_force(1)=2')
+    call parse_arguments([character(len=20) :: '--print-defaults'], cli, err)
+    call check('command line: --print-defaults needs no file', len(err) == 0 .and. &
+               cli%print_defaults)
+    call parse_arguments([character(len=20) :: '--help'], cli, err)
+    call check('command line: --help', len(err) == 0 .and. cli%help)
+    call parse_arguments([character(len=20) :: '--version'], cli, err)
+    call check('command line: --version', len(err) == 0 .and. cli%version)
+    call parse_arguments([character(len=20) :: 'a.nml', '--frobnicate'], cli, err)
+    call expect_parts('command line: unknown option lists the options', err, &
+                      [character(len=20) :: '--frobnicate', '--set', '--check', &
+                       '--print-defaults', '--help', '--version'])
+    call parse_arguments([character(len=20) :: '--check'], cli, err)
+    call expect_parts('command line: no file', err, [character(len=20) :: 'no namelist file'])
+    call parse_arguments([character(len=20) :: 'a.nml', '--set'], cli, err)
+    call expect_parts('command line: --set without value', err, [character(len=20) :: '--set'])
+    call parse_arguments([character(len=20) :: 'a.nml', 'b.nml'], cli, err)
+    call expect_parts('command line: two files', err, [character(len=20) :: 'a.nml', 'b.nml'])
+  end subroutine test_command_line
+
+  subroutine test_errors()
+    character(len=:), allocatable :: text, err
+    character(len=*), parameter :: PERIODIC = '&domain sides = ''periodic'', '// &
+                                   'lower = ''periodic'', upper = ''periodic'' /'
+
+    call expect_error('error: unknown key names group, key, value, suggestion and keys', &
+                      '&lbm'//NL//'  taux = 0.7 /', &
+                      [character(len=40) :: 'input/test.nml:2:', '&lbm', 'taux', '0.7', &
+                       'did you mean ''tau''', 'collision'])
+    call expect_error('error: unknown group names it, suggests one, lists the groups', &
+                      '&lbn tau = 0.7 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&lbn', 'tau', '0.7', &
+                       'did you mean &lbm', '&domain', '&output'])
+    call expect_error('error: value not a real number', '&lbm tau = abc /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&lbm', 'tau', 'abc', &
+                       'not a real number', '0.5 < tau <= 10'])
+    call expect_error('error: repeat count is not a real number', '&lbm tau = 2*0.7 /', &
+                      [character(len=40) :: '&lbm', 'tau', '2*0.7', 'not a real number'])
+    call expect_error('error: string for a real', '&lbm tau = ''0.7'' /', &
+                      [character(len=40) :: '&lbm', 'tau', '''0.7''', 'not a real number'])
+    call expect_error('error: value not an integer', '&run steps = 1.5 /', &
+                      [character(len=40) :: '&run', 'steps', '1.5', 'not an integer'])
+    call expect_error('error: value not a logical', '&output overwrite = yes /', &
+                      [character(len=40) :: '&output', 'overwrite', 'yes', 'not a logical', &
+                       '.true. or .false.'])
+    call expect_error('error: value out of range names line and range', &
+                      '&fluid'//NL//'/'//NL//'&lbm'//NL//'  tau = 0.4'//NL//'/', &
+                      [character(len=40) :: 'input/test.nml:4:', '&lbm tau = 0.4', &
+                       'out of range', 'allowed: 0.5 < tau <= 10', 'relaxation time'])
+    call expect_error('error: integer out of range', '&run guard_every = 0 /', &
+                      [character(len=40) :: '&run', 'guard_every', '= 0', 'guard_every >= 1'])
+    call expect_error('error: s_q is 0 or in (0, 2)', '&lbm s_q = 2.0 /', &
+                      [character(len=40) :: '&lbm', 's_q', '2.0', 's_q = 0 or 0 < s_q < 2'])
+    call expect_error('error: choice not in the list', '&lbm collision = ''trt'' /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&lbm', 'collision', &
+                       '''trt''', '''mrt'', ''bgk'''])
+    call expect_error('error: array index out of range', '&fluid body_force(3) = 1.0 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&fluid', 'body_force(3)', &
+                       '1.0', 'index 3', '2 elements'])
+    call expect_error('error: index on a scalar', '&lbm tau(1) = 0.7 /', &
+                      [character(len=40) :: '&lbm', 'tau(1)', '0.7', 'not an array'])
+    call expect_error('error: too many values', '&fluid body_force = 1, 2, 3 /', &
+                      [character(len=40) :: '&fluid', 'body_force', '1, 2, 3', 'too many'])
+    call expect_error('error: no value', '&lbm tau = /', &
+                      [character(len=40) :: '&lbm', 'tau', 'no value'])
+    call expect_error('error: string too long', '&lbm collision = ''a_very_long_model'' /', &
+                      [character(len=40) :: '&lbm', 'collision', 'a_very_long_model', 'too long'])
+    call expect_error('error: group not closed', '&lbm tau = 0.7', &
+                      [character(len=40) :: 'input/test.nml:1:', '&lbm', 'not closed'])
+    call expect_error('error: group not closed before the next', '&lbm tau = 0.7 &run /', &
+                      [character(len=40) :: '&lbm', '&run', 'not closed'])
+    call expect_error('error: text outside a group', 'tau = 0.7', &
+                      [character(len=40) :: 'input/test.nml:1:', 'tau', 'outside a group'])
+    call expect_error('error: string not closed', '&output'//NL//'dir = ''abc /', &
+                      [character(len=40) :: 'input/test.nml:2:', 'abc', 'not closed'])
+
+    ! Cross-key rules.
+    call expect_error('error: lower periodic without upper', &
+                      '&domain lower = ''periodic'' /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&domain', 'lower', &
+                       '''periodic''', 'upper', '''wall'''])
+    call expect_error('error: taylor_green needs periodic sides and ends', &
+                      '&initial flow = ''taylor_green'' /', &
+                      [character(len=40) :: '&initial', 'flow', '''taylor_green''', 'sides', &
+                       'periodic'])
+    call expect_error('error: taylor_green with periodic ends but wall sides', &
+                      PERIODIC//' &domain sides = ''wall'' / &initial flow = ''taylor_green'' /', &
+                      [character(len=40) :: '&initial', 'flow', 'sides = ''wall'''])
+    call expect_error('error: fewer than 3 cells across', &
+                      '&domain width = 0.008 / &lbm dx = 0.004 /', &
+                      [character(len=40) :: '&domain width = 0.008', '&lbm dx = 0.004', 'nx', &
+                       '= 2 cells', 'nx >= 3'])
+    call expect_error('error: fewer than 3 cells along', &
+                      '&domain height = 0.004 / &lbm dx = 0.004 /', &
+                      [character(len=40) :: '&domain height = 0.004', '&lbm dx = 0.004', 'ny', &
+                       '= 1 cells'])
+    call expect_error('error: width not a whole number of cells', '&lbm dx = 0.003 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&domain width = 2.0', &
+                       '&lbm dx = 0.003', '666.66', 'not a whole number', 'dx = width/n'])
+    call expect_error('error: t_end gives no time step', '&run t_end = 1e-9 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&run', 't_end', '1.0e-9', &
+                       '0 time steps', 'steps >= 1'])
+
+    ! Overrides: the message names the option and the file.
+    call expect_error('error: override out of range', '&lbm tau = 0.7 /', &
+                      [character(len=40) :: 'input/test.nml', '--set lbm.tau=0.4', &
+                       '&lbm tau = 0.4', '0.5 < tau <= 10'], [character(len=40) :: 'lbm.tau=0.4'])
+    call expect_error('error: override of an unknown key', '', &
+                      [character(len=40) :: 'input/test.nml', '--set lbm.taux=1', 'taux', &
+                       'did you mean ''tau'''], [character(len=40) :: 'lbm.taux=1'])
+    call expect_error('error: override of an unknown group', '', &
+                      [character(len=40) :: '--set lbn.tau=1', '&lbn', 'tau', &
+                       'did you mean &lbm'], &
+                      [character(len=40) :: 'lbn.tau=1'])
+    call expect_error('error: override not a number', '', &
+                      [character(len=40) :: '--set run.steps=many', '&run', 'steps', 'many', &
+                       'not an integer'], [character(len=40) :: 'run.steps=many'])
+    call expect_error('error: override without a group', '', &
+                      [character(len=40) :: '--set tau=0.7', 'group.key=value'], &
+                      [character(len=40) :: 'tau=0.7'])
+
+    call read_text_file('/nonexistent/dir/scene.nml', text, err)
+    call expect_parts('error: missing namelist file', err, &
+                      [character(len=60) :: 'cannot open namelist file ''/nonexistent/', &
+                       'scene.nml'': no such file'])
+  end subroutine test_errors
+
+end program test_config

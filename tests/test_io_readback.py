@@ -1,0 +1,189 @@
+"""Read back, with h5py, the files that tests/test_io.f90 writes through dkt_io on 1-4 ranks.
+
+Proves that the parallel HDF5 writer puts every rank's rows where they belong (values checked
+against their defining formula at every point, computed here from the indices), that uneven
+slabs and a rank with no rows are handled, that the result does not depend on the rank count,
+that the group and /run attributes are there, that overwrite replaces file and sidecar, and
+that the XDMF sidecar names only datasets that exist, with the dimensions it states.
+
+The program is found through the environment variable DKT_TEST_IO_EXE (set by ctest);
+mpiexec through MPIEXEC (default: mpiexec), with MPIEXEC_NUMPROC_FLAG and MPIEXEC_PREFLAGS
+(defaults: -n and --oversubscribe).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+# The contract with tests/test_io.f90: grid, spacing, field names and the two snapshots
+# (step -> (time in s, window offset in cm)).
+NX, NY = 5, 7
+DX = 0.25
+FIELDS = ("rho", "ux", "uy", "vorticity", "pressure")
+SNAPSHOTS = {0: (0.0, 0.0), 10: (0.125, 0.5)}
+RANKS = (1, 2, 3, 4)
+
+
+def expected_field(k: int, step: int) -> np.ndarray:
+    """Field k (1-based) at step: 1000 k + 10 j + i + step/4, i column and j row, 1-based.
+
+    Returned in h5py's (row, column) order.
+    """
+    j, i = np.meshgrid(np.arange(1, NY + 1), np.arange(1, NX + 1), indexing="ij")
+    return 1000.0 * k + 10.0 * j + i + 0.25 * step
+
+
+def _text(value: object) -> str:
+    return value.decode() if isinstance(value, (bytes, np.bytes_)) else str(value)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """Run the writer once per rank count; map rank count -> output directory."""
+    exe = os.environ.get("DKT_TEST_IO_EXE")
+    if not exe:
+        pytest.skip("DKT_TEST_IO_EXE is not set (run through ctest)")
+    mpiexec = os.environ.get("MPIEXEC") or "mpiexec"
+    if shutil.which(mpiexec) is None:
+        pytest.fail(f"mpiexec not found: {mpiexec!r} (set MPIEXEC)")
+    np_flag = os.environ.get("MPIEXEC_NUMPROC_FLAG") or "-n"
+    # ctest passes the flags that fit this MPI (empty for MPICH); Open MPI needs --oversubscribe
+    # to start more ranks than cores.
+    preflags = os.environ.get("MPIEXEC_PREFLAGS", "--oversubscribe").split()
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    out = {}
+    for n in RANKS:
+        d = tmp_path_factory.mktemp(f"io_{n}ranks")
+        cmd = [mpiexec, np_flag, str(n), *preflags, exe, str(d)]
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, (
+            f"{' '.join(cmd)} exited {proc.returncode}\n"
+            f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+        )
+        out[n] = d
+    return out
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_every_point_of_every_field_has_its_formula_value(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        assert sorted(f["fields"].keys()) == ["000000", "000010"]
+        for step in SNAPSHOTS:
+            grp = f[f"fields/{step:06d}"]
+            assert sorted(grp.keys()) == sorted(FIELDS)
+            for k, name in enumerate(FIELDS, start=1):
+                data = grp[name]
+                assert data.shape == (NY, NX)
+                assert data.dtype == np.float64
+                np.testing.assert_array_equal(data[()], expected_field(k, step))
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_field_groups_carry_time_step_and_window_offset(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        for step, (t, offset) in SNAPSHOTS.items():
+            attrs = f[f"fields/{step:06d}"].attrs
+            assert attrs["step"] == step
+            assert attrs["time"] == t
+            assert attrs["window_offset"] == offset
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_run_group_holds_configuration_provenance_and_parameters(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        attrs = f["run"].attrs
+        assert _text(attrs["namelist"]) == "&lbm\n  tau = 0.65\n/\n"
+        assert _text(attrs["version"]) == "0.1.0"
+        assert _text(attrs["git_revision"]) == "abc1234"
+        assert attrs["ranks"] == nranks
+        assert _text(attrs["compiler"]).strip()  # compiler_version(): never empty
+        assert "compiler_flags" in attrs  # compiler_options() may be empty
+        assert attrs["dx"] == DX
+        assert attrs["nx"] == NX
+        assert attrs["ny"] == NY
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_series_keeps_rank0_rows_in_order(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        np.testing.assert_array_equal(f["diagnostics/a"][()], [1.0, 2.0, 3.0])
+        np.testing.assert_array_equal(f["diagnostics/b"][()], [-1.0, -2.0, -3.0])
+
+
+def test_rank_counts_give_identical_arrays(runs):
+    def arrays(d: Path) -> dict[str, np.ndarray]:
+        with h5py.File(d / "io_fields.h5", "r") as f:
+            return {
+                f"{step:06d}/{name}": f[f"fields/{step:06d}/{name}"][()]
+                for step in SNAPSHOTS
+                for name in FIELDS
+            }
+
+    reference = arrays(runs[RANKS[0]])
+    for n in RANKS[1:]:
+        other = arrays(runs[n])
+        assert other.keys() == reference.keys()
+        for key, value in reference.items():
+            assert np.array_equal(other[key], value), f"{key} differs on {n} ranks"
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_overwrite_replaces_file_and_sidecar(runs, nranks):
+    d = runs[nranks]
+    with h5py.File(d / "io_overwrite.h5", "r") as f:
+        assert list(f["fields"].keys()) == ["000010"]
+        np.testing.assert_array_equal(f["fields/000010/rho"][()], expected_field(1, 10))
+    items = [
+        e.text
+        for e in ET.parse(d / "io_overwrite.xdmf").iter("DataItem")
+        if e.get("Format") == "HDF"
+    ]
+    assert items and all("/fields/000010/" in s for s in items)
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+@pytest.mark.parametrize("name", ["io_fields", "io_overwrite"])
+def test_xdmf_names_existing_datasets_with_their_dims(runs, nranks, name):
+    d = runs[nranks]
+    root = ET.parse(d / f"{name}.xdmf").getroot()
+    collection = root.find("Domain/Grid")
+    assert collection is not None
+    assert collection.get("CollectionType") == "Temporal"
+    grids = collection.findall("Grid")
+    expected_steps = sorted(SNAPSHOTS) if name == "io_fields" else [10]
+    assert len(grids) == len(expected_steps)
+    with h5py.File(d / f"{name}.h5", "r") as f:
+        for grid, step in zip(grids, expected_steps, strict=True):
+            t, offset = SNAPSHOTS[step]
+            assert float(grid.find("Time").get("Value")) == t
+            topo = grid.find("Topology")
+            assert topo.get("TopologyType") == "2DCoRectMesh"
+            assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+            geo = {
+                e.get("Name"): [float(v) for v in e.text.split()]
+                for e in grid.find("Geometry").findall("DataItem")
+            }
+            # slowest index first: (y, x); nodes at cell centres, y shifted by the window
+            assert geo["Origin"] == [DX / 2 + offset, DX / 2]
+            assert geo["Spacing"] == [DX, DX]
+            attrs = grid.findall("Attribute")
+            assert sorted(a.get("Name") for a in attrs) == sorted(FIELDS)
+            for attr in attrs:
+                assert attr.get("Center") == "Node"
+                assert attr.get("AttributeType") == "Scalar"
+                item = attr.find("DataItem")
+                fname, dset = item.text.strip().split(":", 1)
+                assert fname == f"{name}.h5"
+                assert (d / fname).exists()
+                assert dset in f, f"{dset} named by the XDMF is not in {fname}"
+                dims = tuple(int(v) for v in item.get("Dimensions").split())
+                assert f[dset].shape == dims
+                assert int(item.get("Precision")) == f[dset].dtype.itemsize
