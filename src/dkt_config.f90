@@ -6,6 +6,7 @@
 !> `--print-defaults` and input/README.md (through tests/test_input_readme.py) all come from it.
 module dkt_config
   use dkt_kinds, only: wp, cs2
+  use dkt_mrt, only: e3_heat_flux_rate
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, find_key, check_key, value_text, allowed_text, &
                           origin_of, fmt_real, itoa
@@ -343,7 +344,7 @@ contains
       s_q = c%lbm%s_q
       ! s_q = 0 (the only value <= 0 that passes validation) asks for the E3 rule, which puts
       ! bounce-back walls exactly half-way between nodes.
-      if (s_q <= 0.0_wp) s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
+      if (s_q <= 0.0_wp) s_q = e3_heat_flux_rate(s_nu)
       lp%s = [0.0_wp, c%lbm%s_e, c%lbm%s_eps, 0.0_wp, s_q, 0.0_wp, s_q, s_nu, s_nu]
     end if
     lp%nx = count_of(c%domain%width/lp%dx)

@@ -19,20 +19,16 @@ contains
   subroutine fatal_all(msg, code)
     character(len=*), intent(in) :: msg  !! what is wrong and what to change
     integer, intent(in), optional :: code !! exit status (default EXIT_INPUT)
-    integer :: rank, status
-    logical :: up, down
+    integer :: status
+    logical :: running
     status = EXIT_INPUT
     if (present(code)) status = code
-    rank = 0
-    call MPI_Initialized(up)
-    call MPI_Finalized(down)
-    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
-    if (rank == 0) then
+    if (this_rank(running) == 0) then
       flush (output_unit)
       write (error_unit, '(a)') 'dktlbm: error: '//msg
       flush (error_unit)
     end if
-    if (up .and. .not. down) call MPI_Finalize()
+    if (running) call MPI_Finalize()
     stop status, quiet = .true.
   end subroutine fatal_all
 
@@ -41,34 +37,37 @@ contains
   subroutine fatal_local(msg, code)
     character(len=*), intent(in) :: msg
     integer, intent(in), optional :: code
-    integer :: rank, status
-    logical :: up, down
+    integer :: status
+    logical :: running
     status = EXIT_RUNTIME
     if (present(code)) status = code
-    rank = 0
-    call MPI_Initialized(up)
-    call MPI_Finalized(down)
-    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
     flush (output_unit)
-    write (error_unit, '(a,i0,a)') 'dktlbm: error [rank ', rank, ']: '//msg
+    write (error_unit, '(a,i0,a)') 'dktlbm: error [rank ', this_rank(running), ']: '//msg
     flush (error_unit)
-    if (up .and. .not. down) call MPI_Abort(MPI_COMM_WORLD, status)
+    if (running) call MPI_Abort(MPI_COMM_WORLD, status)
     stop status, quiet = .true.
   end subroutine fatal_local
 
   !> A warning, printed once by rank 0; the run goes on.
   subroutine warn(msg)
     character(len=*), intent(in) :: msg
-    integer :: rank
-    logical :: up, down
-    rank = 0
-    call MPI_Initialized(up)
-    call MPI_Finalized(down)
-    if (up .and. .not. down) call MPI_Comm_rank(MPI_COMM_WORLD, rank)
-    if (rank == 0) then
+    logical :: running
+    if (this_rank(running) == 0) then
       write (error_unit, '(a)') 'dktlbm: warning: '//msg
       flush (error_unit)
     end if
   end subroutine warn
+
+  !> This process's rank in MPI_COMM_WORLD (0 when MPI is not running); running tells whether
+  !! MPI is initialised and not yet finalised.
+  integer function this_rank(running)
+    logical, intent(out) :: running
+    logical :: up, down
+    call MPI_Initialized(up)
+    call MPI_Finalized(down)
+    running = up .and. .not. down
+    this_rank = 0
+    if (running) call MPI_Comm_rank(MPI_COMM_WORLD, this_rank)
+  end function this_rank
 
 end module dkt_errors

@@ -9,7 +9,7 @@ module dkt_mrt
   use dkt_kinds, only: wp
   implicit none
   private
-  public :: collision_t, collision_init, stream_collide, collision_describe
+  public :: collision_t, collision_init, stream_collide, collision_describe, e3_heat_flux_rate
 
   !> Relaxation rates (SPEC E3) and the optional body force, in lattice units.
   type, public :: collision_t
@@ -24,29 +24,30 @@ module dkt_mrt
 
 contains
 
-  !> Set the rates from the relaxation time and the model switch. s_q <= 0 selects E3's
-  !! s_q = 8(2 - s_nu)/(8 - s_nu), which places a bounce-back wall exactly half-way.
-  subroutine collision_init(coll, tau, bgk, s_e, s_eps, s_q, force)
+  !> E3: the heat-flux rate s_q = 8(2 - s_nu)/(8 - s_nu) that places a bounce-back wall exactly
+  !! half-way between nodes, whatever the viscosity.
+  pure real(wp) function e3_heat_flux_rate(s_nu) result(s_q)
+    real(wp), intent(in) :: s_nu !! viscous rate 1/tau
+    s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
+  end function e3_heat_flux_rate
+
+  !> Set the collision from the nine rates in moment order (rho, e, eps, jx, qx, jy, qy, pxx,
+  !! pxy) and the model switch; with bgk (E4) only the viscous rate s(7) = 1/tau is used.
+  subroutine collision_init(coll, s, bgk, force)
     type(collision_t), intent(out) :: coll
-    real(wp), intent(in) :: tau          !! relaxation time (> 1/2)
+    real(wp), intent(in) :: s(0:8)       !! relaxation rates
     logical, intent(in) :: bgk           !! E4 instead of E1
-    real(wp), intent(in) :: s_e, s_eps   !! MRT rates of e and eps
-    real(wp), intent(in) :: s_q          !! heat-flux rate, <= 0 for the E3 rule
     real(wp), intent(in) :: force(2)     !! body force, lattice units
     coll%bgk = bgk
-    coll%s_nu = 1.0_wp/tau
+    coll%s_nu = s(7)
     if (bgk) then
-      coll%s_e = coll%s_nu
-      coll%s_eps = coll%s_nu
-      coll%s_q = coll%s_nu
+      coll%s_e = s(7)
+      coll%s_eps = s(7)
+      coll%s_q = s(7)
     else
-      coll%s_e = s_e
-      coll%s_eps = s_eps
-      if (s_q > 0.0_wp) then
-        coll%s_q = s_q
-      else
-        coll%s_q = 8.0_wp*(2.0_wp - coll%s_nu)/(8.0_wp - coll%s_nu) ! E3
-      end if
+      coll%s_e = s(1)
+      coll%s_eps = s(2)
+      coll%s_q = s(4)
     end if
     coll%force = force
     coll%forced = any(force /= 0.0_wp)
@@ -114,14 +115,15 @@ contains
     real(wp), intent(inout) :: fout(0:nxp - 1, 0:nyl + 1, 0:8)
     real(wp) :: f0, f1, f2, f3, f4, f5, f6, f7, f8
     real(wp) :: rho, rinv, me, meps, jx, qx, jy, qy, pxx, pxy, ux, uy, usq, ruf
-    real(wp) :: a, b, c, d, g, h, p, r, s
-    real(wp) :: s_e, s_eps, s_q, s_nu, fx, fy, ce, ceps, cq, cnu
+    real(wp) :: a, b, c, g, p, r, s, t1, t5, gx1, gx5, gy1, gy5
+    real(wp) :: ke, keps, kq, knu
 
-    s_e = coll%s_e; s_eps = coll%s_eps; s_q = coll%s_q; s_nu = coll%s_nu
-    fx = coll%force(1); fy = coll%force(2)
-    ! Guo forcing in moment space: m* += (1 - s/2) F_m
-    ce = 1.0_wp - 0.5_wp*s_e; ceps = 1.0_wp - 0.5_wp*s_eps
-    cq = 1.0_wp - 0.5_wp*s_q; cnu = 1.0_wp - 0.5_wp*s_nu
+    ! rates scaled by the row norms of M, so the relaxed moments come out as the
+    ! coefficients of M^-1 = M^T D^-1 directly
+    ke = coll%s_e/36.0_wp
+    keps = coll%s_eps/36.0_wp
+    kq = coll%s_q/12.0_wp
+    knu = coll%s_nu/4.0_wp
 
     ! streaming: pull f*(x - e_i)
     f0 = fin(x, j, 0)
@@ -140,61 +142,65 @@ contains
     rho = f0 + a + b
     me = -4.0_wp*f0 - a + 2.0_wp*b
     meps = 4.0_wp*f0 - 2.0_wp*a + b
-    jx = f1 - f3 + f5 - f6 - f7 + f8
-    qx = -2.0_wp*(f1 - f3) + f5 - f6 - f7 + f8
-    jy = f2 - f4 + f5 + f6 - f7 - f8
-    qy = -2.0_wp*(f2 - f4) + f5 + f6 - f7 - f8
+    c = f5 - f6 - f7 + f8
+    jx = f1 - f3 + c
+    qx = -2.0_wp*(f1 - f3) + c
+    c = f5 + f6 - f7 - f8
+    jy = f2 - f4 + c
+    qy = -2.0_wp*(f2 - f4) + c
     pxx = f1 - f2 + f3 - f4
     pxy = f5 - f6 + f7 - f8
 
     rinv = 1.0_wp/rho
     if (forced) then
-      ux = (jx + 0.5_wp*fx)*rinv
-      uy = (jy + 0.5_wp*fy)*rinv
+      ux = (jx + 0.5_wp*coll%force(1))*rinv
+      uy = (jy + 0.5_wp*coll%force(2))*rinv
     else
       ux = jx*rinv
       uy = jy*rinv
     end if
     usq = ux*ux + uy*uy
 
-    ! relax towards E2 with the E3 rates
-    me = me - s_e*(me - rho*(-2.0_wp + 3.0_wp*usq))
-    meps = meps - s_eps*(meps - rho*(1.0_wp - 3.0_wp*usq))
-    qx = qx - s_q*(qx + rho*ux)
-    qy = qy - s_q*(qy + rho*uy)
-    pxx = pxx - s_nu*(pxx - rho*(ux*ux - uy*uy))
-    pxy = pxy - s_nu*(pxy - rho*ux*uy)
+    ! m* - m = -S (m - m^eq) with the E2 equilibria and E3 rates, divided by the row norms
+    ! (the conserved rho, jx, jy do not change)
+    b = -ke*(me - rho*(-2.0_wp + 3.0_wp*usq))
+    c = -keps*(meps - rho*(1.0_wp - 3.0_wp*usq))
+    g = -kq*(qx + rho*ux)
+    p = -kq*(qy + rho*uy)
+    r = -knu*(pxx - rho*(ux*ux - uy*uy))
+    s = -knu*(pxy - rho*ux*uy)
     if (forced) then
-      ruf = ux*fx + uy*fy
-      me = me + ce*6.0_wp*ruf
-      meps = meps - ceps*6.0_wp*ruf
-      jx = jx + fx
-      jy = jy + fy
-      qx = qx - cq*fx
-      qy = qy - cq*fy
-      pxx = pxx + cnu*2.0_wp*(ux*fx - uy*fy)
-      pxy = pxy + cnu*(ux*fy + uy*fx)
+      ! Guo forcing in moment space: m* += (1 - s/2) F_m; jx, jy gain the full force
+      ruf = ux*coll%force(1) + uy*coll%force(2)
+      b = b + (1.0_wp - 0.5_wp*coll%s_e)*ruf/6.0_wp
+      c = c - (1.0_wp - 0.5_wp*coll%s_eps)*ruf/6.0_wp
+      g = g - (1.0_wp - 0.5_wp*coll%s_q)*coll%force(1)/12.0_wp
+      p = p - (1.0_wp - 0.5_wp*coll%s_q)*coll%force(2)/12.0_wp
+      r = r + (1.0_wp - 0.5_wp*coll%s_nu)*(ux*coll%force(1) - uy*coll%force(2))*0.5_wp
+      s = s + (1.0_wp - 0.5_wp*coll%s_nu)*(ux*coll%force(2) + uy*coll%force(1))*0.25_wp
+      gx1 = coll%force(1)/6.0_wp - 2.0_wp*g
+      gx5 = coll%force(1)/6.0_wp + g
+      gy1 = coll%force(2)/6.0_wp - 2.0_wp*p
+      gy5 = coll%force(2)/6.0_wp + p
+    else
+      gx1 = -2.0_wp*g
+      gx5 = g
+      gy1 = -2.0_wp*p
+      gy5 = p
     end if
 
-    ! f* = M^-1 m* = M^T D^-1 m*
-    a = rho*(1.0_wp/9.0_wp)
-    b = me*(1.0_wp/36.0_wp)
-    c = meps*(1.0_wp/36.0_wp)
-    d = jx*(1.0_wp/6.0_wp)
-    g = qx*(1.0_wp/12.0_wp)
-    h = jy*(1.0_wp/6.0_wp)
-    p = qy*(1.0_wp/12.0_wp)
-    r = pxx*0.25_wp
-    s = pxy*0.25_wp
-    fout(x, j, 0) = a - 4.0_wp*(b - c)
-    fout(x, j, 1) = a - b - 2.0_wp*c + d - 2.0_wp*g + r
-    fout(x, j, 2) = a - b - 2.0_wp*c + h - 2.0_wp*p - r
-    fout(x, j, 3) = a - b - 2.0_wp*c - d + 2.0_wp*g + r
-    fout(x, j, 4) = a - b - 2.0_wp*c - h + 2.0_wp*p - r
-    fout(x, j, 5) = a + 2.0_wp*b + c + d + g + h + p + s
-    fout(x, j, 6) = a + 2.0_wp*b + c - d - g + h + p - s
-    fout(x, j, 7) = a + 2.0_wp*b + c - d - g - h - p + s
-    fout(x, j, 8) = a + 2.0_wp*b + c + d + g - h - p - s
+    ! f* = f + M^T D^-1 (m* - m)
+    t1 = -b - 2.0_wp*c
+    t5 = 2.0_wp*b + c
+    fout(x, j, 0) = f0 - 4.0_wp*(b - c)
+    fout(x, j, 1) = f1 + t1 + gx1 + r
+    fout(x, j, 2) = f2 + t1 + gy1 - r
+    fout(x, j, 3) = f3 + t1 - gx1 + r
+    fout(x, j, 4) = f4 + t1 - gy1 - r
+    fout(x, j, 5) = f5 + t5 + gx5 + gy5 + s
+    fout(x, j, 6) = f6 + t5 - gx5 + gy5 - s
+    fout(x, j, 7) = f7 + t5 - gx5 - gy5 + s
+    fout(x, j, 8) = f8 + t5 + gx5 - gy5 - s
   end subroutine mrt_node
 
   !> Pull and collide with E4 at node (x, j): f* = f - (f - f^eq)/tau + (1 - 1/(2 tau)) F_i,

@@ -71,8 +71,7 @@ contains
     call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
                        end_kind(cfg%domain%upper), lp%u_in_lb, cfg%inlet%profile == 'parabolic', &
                        cfg%inlet%ramp_time/lp%dt)
-    call collision_init(sim%coll, lp%tau, cfg%lbm%collision == 'bgk', lp%s(1), lp%s(2), &
-                        lp%s(4), lp%force_lb)
+    call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
     allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     call initialise(sim)

@@ -7,7 +7,8 @@
 program test_mrt
   use dkt_kinds, only: wp
   use dkt_lattice, only: ex, ey, w, opp, moment_matrix, moment_norm, equilibrium
-  use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
+  use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide, &
+                     e3_heat_flux_rate
   implicit none
   integer :: passed = 0, failed = 0
   integer, parameter :: nx = 7, nyl = 5, nxp = nx + 2
@@ -114,8 +115,10 @@ contains
     integer :: x, j, i
     force = 0.0_wp
     if (forced) force = [2.0e-4_wp, -3.0e-4_wp]
-    call collision_init(coll, 0.7_wp, .false., 1.1_wp, 1.25_wp, 0.0_wp, force)
-    s = collision_describe(coll)
+    s = [0.0_wp, 1.1_wp, 1.25_wp, 0.0_wp, e3_heat_flux_rate(1/0.7_wp), 0.0_wp, &
+         e3_heat_flux_rate(1/0.7_wp), 1/0.7_wp, 1/0.7_wp]
+    call collision_init(coll, s, .false., force)
+    if (any(collision_describe(coll) /= s)) call check('collision keeps the rates', .false., 0.0_wp)
     call random_lattice(fin)
     fout = 0.0_wp
     call stream_collide(coll, fin, fout, nxp, nx, nyl, 1, nyl)
@@ -150,10 +153,12 @@ contains
     real(wp) :: fin(0:nxp - 1, 0:nyl + 1, 0:8), fa(0:nxp - 1, 0:nyl + 1, 0:8)
     real(wp) :: fb(0:nxp - 1, 0:nyl + 1, 0:8), force(2), err
     real(wp), parameter :: tau = 0.83_wp
+    integer :: k
     force = 0.0_wp
     if (forced) force = [1.0e-4_wp, 2.5e-4_wp]
-    call collision_init(mrt, tau, .false., 1.0_wp/tau, 1.0_wp/tau, 1.0_wp/tau, force)
-    call collision_init(bgk, tau, .true., 0.0_wp, 0.0_wp, 0.0_wp, force)
+    call collision_init(mrt, [0.0_wp, (1.0_wp/tau, k=1, 8)], .false., force)
+    call collision_init(bgk, [0.0_wp, 9.0_wp, 9.0_wp, 0.0_wp, 9.0_wp, 0.0_wp, 9.0_wp, &
+                              1.0_wp/tau, 1.0_wp/tau], .true., force)
     call random_lattice(fin)
     fa = 0.0_wp
     fb = 0.0_wp
