@@ -8,6 +8,8 @@ module dkt_log
   public :: log_line, log_open, log_close
 
   integer, save :: log_unit = -1
+  !> whether the log file is open (newunit= gives negative unit numbers, so the unit cannot tell)
+  logical, save :: log_is_open = .false.
   character(len=:), allocatable, save :: pending   !! lines logged before log_open
   logical, save :: to_stdout = .true.
 
@@ -27,7 +29,7 @@ contains
       write (output_unit, '(a)') msg
       flush (output_unit)
     end if
-    if (log_unit >= 0) then
+    if (log_is_open) then
       write (log_unit, '(a)') msg
       flush (log_unit)
     else
@@ -47,10 +49,10 @@ contains
     open (newunit=log_unit, file=path, status='replace', action='write', iostat=ios, &
           iomsg=iomsg)
     if (ios /= 0) then
-      log_unit = -1
       err = 'cannot write the log file '''//path//''': '//trim(iomsg)
       return
     end if
+    log_is_open = .true.
     if (allocated(pending)) then
       write (log_unit, '(a)', advance='no') pending
       deallocate (pending)
@@ -58,8 +60,8 @@ contains
   end subroutine log_open
 
   subroutine log_close()
-    if (log_unit >= 0) close (log_unit)
-    log_unit = -1
+    if (log_is_open) close (log_unit)
+    log_is_open = .false.
   end subroutine log_close
 
 end module dkt_log

@@ -5,7 +5,7 @@ module dkt_simulation
   use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, i8, pi, cs2
-  use dkt_errors, only: fatal_all, fatal_local, EXIT_RUNTIME
+  use dkt_errors, only: fatal_all, fatal_local, warn
   use dkt_config, only: config_t, lattice_params_t, config_to_namelist, config_output_dir
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
@@ -128,9 +128,15 @@ contains
       s = collision_describe(sim%coll)
       write (line, '(a,9(1x,f7.4))') 'rates s_0..s_8 (rho e eps jx qx jy qy pxx pxy):', s
       call log_line(trim(line))
-      write (line, '(a,es10.3,a,f7.4,a,es10.3)') 'velocity scale ', lp%u_scale_lb*lp%dx/lp%dt, &
-        ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
+      write (line, '(a,es11.4,a,es11.4,a,es11.4)') 'velocity scale ', &
+        lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
       call log_line(trim(line))
+      if (lp%mach > cfg%run%mach_limit) then
+        write (line, '(a,es11.4,a,es11.4,a)') 'the expected Mach number ', lp%mach, &
+          ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '// &
+          'Refine lbm.dx or lower lbm.tau (both shrink dt), or lower the velocity scale'
+        call warn(trim(line))
+      end if
       write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
         int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
       call log_line(trim(line))
@@ -172,11 +178,11 @@ contains
     ok = len(err) == 0
     call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
     ! only rank 0 knows the reason; it is the rank that prints
-    if (.not. ok) call fatal_all('output.dir = '''//dir//''': '//err// &
-                                 '; choose a writable output.dir')
+    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
+                                 err//'; choose a writable output.dir')
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
-    if (len(err) > 0) call fatal_all('output.dir = '''//dir//''': '//err)
+    if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
     sim%output_open = .true.
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)

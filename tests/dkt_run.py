@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import os
 import shlex
+import signal
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -80,3 +82,58 @@ def run_attr(h5file: Path, name: str) -> float:
 
     with h5py.File(h5file, "r") as h5:
         return float(np.asarray(h5["run"].attrs[name]).ravel()[0])
+
+
+def _session_pids(sid: int) -> list[int]:
+    """Processes of session `sid` (Linux /proc): mpiexec puts each rank in its own process
+    group, but they stay in the session run_args starts."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()  # after "pid (comm) "
+        if int(fields[3]) == sid:
+            pids.append(int(entry.name))
+    return pids
+
+
+def run_args(
+    args: list[str],
+    ranks: int = 1,
+    timeout: float = 300.0,
+    cwd: Path | None = None,
+    env: dict[str, str] | None = None,
+) -> subprocess.CompletedProcess[str]:
+    """Run dktlbm with the raw command-line `args` on `ranks` ranks (in directory `cwd`, with the
+    extra environment variables `env`); return the finished process whatever its exit status.
+    A run still going after `timeout` s is a hang: mpiexec and every rank are killed and
+    AssertionError is raised."""
+    cmd = [*mpi_command(ranks), str(EXE), *args]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**mpi_env(), **(env or {})},
+        cwd=cwd,
+        start_new_session=True,
+    )
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.terminate()  # mpiexec passes SIGTERM on to the ranks
+        time.sleep(2.0)
+        for pid in _session_pids(proc.pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        out, err = proc.communicate()
+        raise AssertionError(
+            f"hang: no exit within {timeout} s: {' '.join(cmd)}\n{out}\n{err}"
+        ) from None
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)

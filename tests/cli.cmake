@@ -1,0 +1,12 @@
+# Tests of the program as a user meets it: bad input on the command line and in scene files
+# (clear message, non-zero exit, no hang, no output), the run-time guards (Mach number,
+# non-finite values), and the output contract of a real run (HDF5 layout, /run attributes,
+# physical fields, XDMF sidecar, log copy).
+#
+# test_bad_input.py runs one case on 4 ranks (more ranks than the scene's rows allow); it stops
+# during set-up, so the file's real load is 2 ranks.
+dkt_add_pytest(NAME cli_bad_input FILE tests/test_bad_input.py LABELS mpi PROCESSORS 2
+  TIMEOUT 180)
+dkt_add_pytest(NAME cli_guards FILE tests/test_guards.py LABELS mpi PROCESSORS 2 TIMEOUT 120)
+dkt_add_pytest(NAME cli_output_contract FILE tests/test_output_contract.py LABELS regression
+  PROCESSORS 2 TIMEOUT 120)

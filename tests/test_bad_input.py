@@ -1,0 +1,406 @@
+"""Bad input (DESIGN "Input", "Errors and guards"; input/README.md "Errors").
+
+Each invalid input is run on 2 ranks with a 10 s limit and must give: a non-zero exit, no hang,
+exactly one message from rank 0 that names the file (and line, or the --set option), the group,
+the key, the bad value and what is allowed, and no output (the output directory is not created,
+nothing appears in the working directory, an earlier run's files stay byte for byte the same).
+
+On "no hang": Open MPI's mpiexec ends the whole job as soon as one rank exits with a non-zero
+status, so a rank left waiting while rank 0 stops is reaped by the launcher, not seen here. The
+time limit catches a job in which no rank gets out (e.g. rank 0 blocked in MPI_Finalize while
+another rank waits in a collective, or every rank waiting for a broadcast that never comes).
+
+The scenes are small edits of input/poiseuille.nml (20 x 6 cells) written into tmp_path; the
+expected pieces of each message are derived from the edit, not copied from the program.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from dkt_run import INPUT, run_args
+
+RANKS = 2
+TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails the test
+# Open MPI's mpiexec waits 1 s between SIGTERM and SIGKILL when it ends a job after a non-zero
+# exit; the ranks here have already stopped, so the wait only slows the tests down.
+ENV = {"OMPI_MCA_odls_base_sigkill_timeout": "0"}
+BASE = (INPUT / "poiseuille.nml").read_text()
+# The base scene runs 5 steps instead of t_end = 2000 s, so the valid runs below are instant.
+BASE = BASE.replace("t_end = 2000.0", "steps = 5")
+assert "steps = 5" in BASE
+
+
+def dkt(args: list[str], cwd: Path, ranks: int = RANKS):
+    """dktlbm `args` on `ranks` ranks in directory `cwd`, limited to TIMEOUT."""
+    return run_args(args, ranks, TIMEOUT, cwd, ENV)
+
+
+def write_scene(tmp_path: Path, old: str | None = None, new: str = "") -> tuple[Path, int]:
+    """The base scene with `old` replaced by `new` (once) as tmp_path/bad.nml, and the 1-based
+    line number of the edit (0 when nothing was edited)."""
+    text = BASE
+    line = 0
+    if old is not None:
+        assert text.count(old) == 1, f"{old!r} must occur once in the base scene"
+        line = text[: text.index(old)].count("\n") + 1
+        text = text.replace(old, new)
+    path = tmp_path / "bad.nml"
+    path.write_text(text)
+    return path, line
+
+
+def tree_digest(path: Path) -> dict[str, str]:
+    """sha256 of every file below path, by relative name (directories as 'dir')."""
+    digest = {}
+    for p in sorted(path.rglob("*")):
+        rel = str(p.relative_to(path))
+        digest[rel] = "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
+    return digest
+
+
+def error_lines(stderr: str) -> list[str]:
+    return [ln for ln in stderr.splitlines() if ln.startswith("dktlbm: error")]
+
+
+def assert_clean_failure(proc, outdir: Path, cwd: Path) -> str:
+    """Common contract of every bad input; returns the one error message."""
+    assert proc.returncode != 0, f"exit status 0 for a bad input\n{proc.stdout}\n{proc.stderr}"
+    lines = error_lines(proc.stderr)
+    # one message from rank 0: a second rank printing too, or a rank-prefixed local message
+    # (fatal_local instead of fatal_all), would break this
+    assert len(lines) == 1, f"expected one error message, got {len(lines)}:\n{proc.stderr}"
+    assert lines[0].startswith("dktlbm: error: "), lines[0]
+    assert not outdir.exists(), f"output directory {outdir} was created by a bad input"
+    assert list(cwd.iterdir()) == [], f"files written to the working directory: {cwd}"
+    return lines[0]
+
+
+@dataclass
+class Case:
+    """One bad input: an edit of the base scene and/or command-line arguments, and the pieces
+    the message must contain (`{file}` and `{line}` are filled in)."""
+
+    old: str | None = None
+    new: str = ""
+    args: list[str] = field(default_factory=list)
+    pieces: list[str] = field(default_factory=list)
+    no_file: bool = False  # pass no scene file on the command line
+
+
+LBM_KEYS = "dx, tau, collision, s_e, s_eps, s_q"  # input/README.md, &lbm
+TAU_RANGE = "0.5 < tau <= 10"
+
+CASES = {
+    # &lbm has no key 'taux': the list of the group's keys and the near miss are offered
+    "unknown-key": Case(
+        "tau = 1.0",
+        "tau = 1.0, taux = 0.7",
+        pieces=["{file}:{line}:", "&lbm", "'taux'", "taux = 0.7", LBM_KEYS, "'tau'"],
+    ),
+    "misspelt-group-lbmm": Case(
+        "&lbm",
+        "&lbmm",
+        pieces=["{file}:{line}:", "unknown group &lbmm", "&domain", "did you mean &lbm?"],
+    ),
+    "tau-equal-0.5": Case(
+        "tau = 1.0", "tau = 0.5", pieces=["{file}:{line}:", "&lbm", "tau = 0.5", TAU_RANGE]
+    ),
+    "tau-0.3": Case(
+        "tau = 1.0", "tau = 0.3", pieces=["{file}:{line}:", "&lbm", "tau = 0.3", TAU_RANGE]
+    ),
+    "negative-width": Case(
+        "width = 1.0",
+        "width = -2",
+        pieces=["{file}:{line}:", "&domain", "width = -2", "width > 0"],
+    ),
+    "tau-not-a-number-abc": Case(
+        "tau = 1.0",
+        "tau = 'abc'",
+        pieces=["{file}:{line}:", "&lbm", "tau", "abc", "not a real number", TAU_RANGE],
+    ),
+    "tau-not-a-number-0.6x": Case(
+        "tau = 1.0",
+        "tau = 0.6x",
+        pieces=["{file}:{line}:", "&lbm", "tau", "0.6x", "not a real number", TAU_RANGE],
+    ),
+    "steps-not-an-integer": Case(
+        "steps = 5",
+        "steps = 1.5",
+        pieces=["{file}:{line}:", "&run", "steps = 1.5", "not an integer", "steps >= 0"],
+    ),
+    "overwrite-not-a-logical": Case(
+        args=["--set", "output.overwrite=maybe"],
+        pieces=["{file}", "--set output.overwrite=maybe", "&output", "maybe", ".true."],
+    ),
+    "choice-not-in-list": Case(
+        "tau = 1.0",
+        "tau = 1.0, collision = 'xyz'",
+        pieces=["{file}:{line}:", "&lbm", "collision", "'xyz'", "'mrt'", "'bgk'"],
+    ),
+    "choice-not-in-list-by-set": Case(
+        args=["--set", "lbm.collision=xyz"],
+        pieces=["{file}", "--set lbm.collision=xyz", "&lbm", "collision", "'xyz'", "'mrt'"],
+    ),
+    # a valid file made invalid by an option: the message names the option, not a file line
+    "range-by-set": Case(
+        args=["--set", "lbm.tau=0.3"],
+        pieces=["{file}", "--set lbm.tau=0.3", "&lbm", "tau = 0.3", TAU_RANGE],
+    ),
+    "mach-limit-above-1": Case(
+        args=["--set", "run.mach_limit=1.5"],
+        pieces=["{file}", "&run", "mach_limit = 1.5", "0 < mach_limit <= 1"],
+    ),
+    "guard-every-0": Case(
+        args=["--set", "run.guard_every=0"],
+        pieces=["{file}", "&run", "guard_every = 0", "guard_every >= 1"],
+    ),
+    "set-unknown-key": Case(
+        args=["--set", "lbm.taux=0.7"],
+        pieces=["{file}", "--set lbm.taux=0.7", "&lbm", "'taux'", LBM_KEYS, "'tau'"],
+    ),
+    "set-unknown-group": Case(
+        args=["--set", "lbn.tau=0.7"],
+        pieces=["{file}", "--set lbn.tau=0.7", "&lbn", "did you mean &lbm?"],
+    ),
+    "set-without-value": Case(
+        args=["--set", "lbm.tau"], pieces=["--set lbm.tau", "group.key=value"]
+    ),
+    "unknown-option": Case(args=["--frobnicate"], pieces=["'--frobnicate'", "--set", "--check"]),
+    "no-scene-file": Case(no_file=True, pieces=["no namelist file"]),
+    # lower and upper are periodic together or not at all (input/README.md, rules)
+    "periodic-one-end-only": Case(
+        "upper = 'periodic'", "upper = 'wall'", pieces=["{file}", "lower", "upper", "periodic"]
+    ),
+    # 1.0 cm / 0.03 cm is not a whole number of cells: the message names both keys and a dx
+    # that fits (1/33 or 1/34 cm)
+    "dx-does-not-fit-width": Case(
+        "dx = 0.05", "dx = 0.03", pieces=["{file}", "&domain", "width", "&lbm", "dx = 0.03"]
+    ),
+}
+
+
+@pytest.mark.parametrize("case", CASES.values(), ids=CASES.keys())
+def test_bad_input_stops_every_rank_with_one_clear_message_and_no_output(
+    tmp_path: Path, case: Case
+) -> None:
+    """Catches: a missing or vague message (no file/line, group, key, value or range), a
+    message per rank, exit status 0, a job that never ends (timeout), output written before the
+    input was validated."""
+    scene, line = write_scene(tmp_path, case.old, case.new)
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    args = [] if case.no_file else [str(scene)]
+    args += [*case.args, "--set", f"output.dir={outdir}"]
+    proc = dkt(args, cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    assert "error" in msg
+    for piece in case.pieces:
+        piece = piece.format(file=scene, line=line)
+        assert piece in msg, f"{piece!r} missing from the message:\n{msg}"
+
+
+def test_misspelt_group_message_lists_lbm_as_a_known_group(tmp_path: Path) -> None:
+    """'&lbm' is a prefix of '&lbmm': check the known-group list really names &lbm on its own
+    (a message that only echoed the bad name would pass the substring test above)."""
+    scene, _ = write_scene(tmp_path, "&lbm", "&lbmm")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(scene), "--set", f"output.dir={tmp_path / 'out'}"], cwd)
+    msg = assert_clean_failure(proc, tmp_path / "out", cwd)
+    known = msg.split("known groups:", 1)[1]
+    assert re.search(r"&lbm(?![a-z])", known), msg
+
+
+def test_dx_that_does_not_fit_gets_a_suggestion_that_fits(tmp_path: Path) -> None:
+    """The message suggests a dx; width/dx must then be a whole number. Catches a suggestion
+    computed with the wrong length or rounding."""
+    scene, _ = write_scene(tmp_path, "dx = 0.05", "dx = 0.03")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(scene), "--set", f"output.dir={tmp_path / 'out'}"], cwd)
+    msg = assert_clean_failure(proc, tmp_path / "out", cwd)
+    m = re.search(r"e\.g\. dx = ([0-9.eEdD+-]+)", msg)
+    assert m, msg
+    suggested = float(m.group(1).replace("d", "e").replace("D", "e"))
+    cells = 1.0 / suggested  # width = 1.0 cm in the base scene
+    assert abs(cells - round(cells)) < 1e-6 and round(cells) >= 3, msg
+    # and the suggestion is near the dx asked for (the nearest whole count of cells)
+    assert round(cells) in (math.floor(1.0 / 0.03), math.ceil(1.0 / 0.03)), msg
+
+
+def test_missing_namelist_file(tmp_path: Path) -> None:
+    """Catches: a read error that hangs the ranks waiting for rank 0, or a message that does not
+    say which file."""
+    missing = tmp_path / "no_such_scene.nml"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    outdir = tmp_path / "out"
+    proc = dkt([str(missing), "--set", f"output.dir={outdir}"], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    assert str(missing) in msg and "cannot open" in msg, msg
+
+
+# ny = height/dx rows; a slab needs MIN_SLAB_ROWS = 2 rows (DESIGN "Data layout": slabs with one
+# ghost row each side), so at most ny // 2 ranks can work.
+@pytest.mark.parametrize(
+    ("height", "ranks"),
+    [(0.3, 4), (0.15, 2)],
+    ids=["6-rows-on-4-ranks", "3-rows-on-2-ranks"],
+)
+def test_more_ranks_than_rows_allow_names_the_largest_rank_count(
+    tmp_path: Path, height: float, ranks: int
+) -> None:
+    """Catches: a decomposition that silently gives a rank too few rows (wrong results or a
+    crash), a hang, or a message that does not say how many ranks would work."""
+    scene, _ = write_scene(tmp_path, "height = 0.3", f"height = {height}")
+    ny = round(height / 0.05)
+    assert ny // 2 < ranks
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd, ranks)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    assert str(scene) in msg, msg
+    assert f"{ny} rows" in msg, msg
+    assert re.search(rf"at most {ny // 2} ranks?\b", msg), msg
+
+
+def test_unwritable_output_directory(tmp_path: Path) -> None:
+    """output.dir below a regular file cannot be created (root ignores permissions, a file in
+    the path does not). Catches: a hang (only rank 0 creates directories), a crash inside HDF5,
+    or a message that does not name output.dir and its value; the file stays untouched."""
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("not a directory\n")
+    outdir = blocker / "out"
+    scene, _ = write_scene(tmp_path)
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    assert "output.dir" in msg and str(outdir) in msg, msg
+    assert blocker.read_text() == "not a directory\n"
+
+
+def test_existing_output_is_never_overwritten_without_output_overwrite(tmp_path: Path) -> None:
+    """A second run into the same directory fails and leaves the first run's .h5, .xdmf and .log
+    byte for byte the same; so does a bad input even with output.overwrite = .true. (validation
+    comes before any write). The last run, valid and with output.overwrite = .true., succeeds:
+    the control that the directory itself was writable all along."""
+    scene, _ = write_scene(tmp_path)
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    first = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
+    assert first.returncode == 0, first.stderr
+    assert (outdir / "bad.h5").is_file()
+    before = tree_digest(outdir)
+
+    again = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
+    assert again.returncode != 0, "a second run replaced an existing output file"
+    lines = error_lines(again.stderr)
+    assert len(lines) == 1, again.stderr
+    assert str(outdir / "bad.h5") in lines[0] and "output.overwrite" in lines[0], lines[0]
+    assert tree_digest(outdir) == before, "the failed run changed the earlier run's files"
+
+    bad = dkt(
+        [str(scene), "--set", f"output.dir={outdir}", "--set", "output.overwrite=.true."]
+        + ["--set", "lbm.tau=0.3"],
+        cwd,
+    )
+    assert bad.returncode != 0
+    assert len(error_lines(bad.stderr)) == 1, bad.stderr
+    assert tree_digest(outdir) == before, "a bad input touched the earlier run's files"
+
+    ok = dkt(
+        [str(scene), "--set", f"output.dir={outdir}", "--set", "output.overwrite=.true."],
+        cwd,
+    )
+    assert ok.returncode == 0, ok.stderr
+    assert list(cwd.iterdir()) == []
+
+
+def test_an_option_can_mend_a_bad_value_in_the_file(tmp_path: Path) -> None:
+    """README: ranges are checked after the file and every --set are applied. Catches a check
+    made while reading the file (the run would stop on tau = 0.3)."""
+    scene, _ = write_scene(tmp_path, "tau = 1.0", "tau = 0.3")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(scene), "--check", "--set", "lbm.tau=0.9"], cwd)
+    assert proc.returncode == 0, proc.stderr
+    assert error_lines(proc.stderr) == []
+
+
+def number_after(label: str, text: str) -> float:
+    m = re.search(re.escape(label) + r"\s*([-+0-9.]+(?:[eE][-+]?[0-9]+)?)", text)
+    assert m, f"{label!r} not found in:\n{text}"
+    return float(m.group(1))
+
+
+@pytest.mark.parametrize("collision", ["mrt", "bgk"])
+def test_check_prints_the_derived_lattice_and_writes_nothing(
+    tmp_path: Path, collision: str
+) -> None:
+    """--check on input/inlet_channel.nml: exit 0, the printed dx, dt, tau, nine rates, lattice
+    viscosity, Mach and Reynolds numbers, cells, steps, memory per rank and models agree with
+    SPEC E3/E4 computed here from the scene, and nothing is written (no output directory, no
+    runs/ in the working directory). Catches wrong unit conversions (dt, Mach), the wrong E3
+    heat-flux rate, BGK not using 1/tau everywhere, and --check that writes or time-steps."""
+    width, height, mu, rho, dx, tau, u_in, t_end = 1.0, 8.0, 0.05, 1.0, 0.05, 0.6, 0.5, 40.0
+    nu = mu / rho
+    nu_lb = (tau - 0.5) / 3.0
+    dt = nu_lb * dx**2 / nu  # E3, diffusive scaling
+    s_nu = 1.0 / tau
+    s_q = 8.0 * (2.0 - s_nu) / (8.0 - s_nu)
+    if collision == "mrt":
+        rates = [0.0, 1.1, 1.25, 0.0, s_q, 0.0, s_q, s_nu, s_nu]
+        free = range(9)
+    else:
+        rates = [s_nu] * 9
+        free = [1, 2, 4, 6, 7, 8]  # rho, jx, jy are conserved: their rate has no effect
+    mach = u_in * dt / dx / math.sqrt(1.0 / 3.0)
+    reynolds = u_in * width / nu
+    nx, ny = round(width / dx), round(height / dx)
+    steps = round(t_end / dt)
+
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    args = [str(INPUT / "inlet_channel.nml"), "--check", "--set", f"lbm.collision={collision}"]
+    # s_q is an MRT rate: BGK must ignore it
+    args += ["--set", "lbm.s_q=0.3" if collision == "bgk" else "lbm.s_q=0"]
+    proc = dkt([*args, "--set", f"output.dir={outdir}"], cwd)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert not outdir.exists() and list(cwd.iterdir()) == [], "--check wrote output"
+    assert "performance:" not in out, "--check time-stepped"
+
+    assert number_after("dx =", out) == pytest.approx(dx, rel=1e-5)
+    assert number_after("dt =", out) == pytest.approx(dt, rel=1e-5)
+    assert number_after("tau =", out) == pytest.approx(tau, abs=1e-5)
+    assert number_after("nu =", out) == pytest.approx(nu_lb, rel=1e-5)
+    line = next(ln for ln in out.splitlines() if ln.startswith("rates"))
+    printed = [float(v) for v in line.split(":", 1)[1].split()]
+    assert len(printed) == 9, line
+    for k in free:
+        assert printed[k] == pytest.approx(rates[k], abs=1e-4), f"s_{k}: {line}"
+    assert number_after("Mach", out) == pytest.approx(mach, abs=1e-4)
+    assert number_after("Reynolds", out) == pytest.approx(reynolds, rel=1e-3)
+    m = re.search(r"cells (\d+) x (\d+) = (\d+), steps (\d+)", out)
+    assert m, out
+    assert [int(g) for g in m.groups()] == [nx, ny, nx * ny, steps]
+    # two lattices of 9 doubles per node of this rank's ny/2 rows: a lower bound (padding and
+    # ghost rows add a little); a factor 8 (bits) or 2**10 (KiB) slip fails either bound
+    lattice_mib = number_after("memory per rank: lattices", out)
+    least = 2 * 9 * nx * (ny // RANKS) * 8 / 2**20
+    assert least <= lattice_mib < 2 * least, out
+    models = next(ln for ln in out.splitlines() if ln.startswith("models:"))
+    assert ("BGK" if collision == "bgk" else "MRT") in models, models
+    assert "velocity" in models and "outflow" in models and "parabolic" in models, models

@@ -1,0 +1,261 @@
+"""The output contract (DESIGN "Output") on a real run of input/inlet_channel.nml on 2 ranks.
+
+The run is shortened (run.steps = 250, output.field_interval = 0.1 s = 60 steps) and its fluid
+changed to density 1.2 g/cm^3, viscosity 0.06 g/(cm s) (the same nu = 0.05 cm^2/s, so the same
+dt, but rho_f != 1 shows whether the density scale is applied). The inlet, 0.1 cm/s ramped up
+over 0.15 s (90 steps), starts a sound wave down the channel (c_s = dx/dt/sqrt(3) = 17 cm/s)
+whose density jump is about the mean inlet Mach number, 0.4 %, plus the viscous pressure drop:
+well inside the 1 % of a nearly incompressible run (the scene's 0.5 cm/s would jump by 2 %).
+
+Every expected value is derived here from the scene and SPEC E3/E5: the lattice (dx, dt, tau,
+rates, nx, ny), the field steps and times, the equation of state, the vorticity of the stored
+velocity, the imposed inlet profile.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from dkt_run import INPUT, ROOT, run_args
+
+RANKS = 2
+TIMEOUT = 120.0
+NAME = "inlet_channel"
+# input/inlet_channel.nml and the overrides below
+WIDTH, HEIGHT, DX, TAU, U_IN = 1.0, 8.0, 0.05, 0.6, 0.1
+RHO_F, MU = 1.2, 0.06
+STEPS, FIELD_INTERVAL, RAMP_TIME = 250, 0.1, 0.15
+SETS = [
+    f"run.steps={STEPS}",
+    f"output.field_interval={FIELD_INTERVAL}",
+    f"fluid.density={RHO_F}",
+    f"fluid.viscosity={MU}",
+    f"inlet.ramp_time={RAMP_TIME}",
+    f"inlet.velocity={U_IN}",
+]
+NU_LB = (TAU - 0.5) / 3.0
+DT = NU_LB * DX**2 / (MU / RHO_F)  # SPEC E3, diffusive scaling
+NX, NY = round(WIDTH / DX), round(HEIGHT / DX)
+CS2 = 1.0 / 3.0
+FIELDS = {"rho", "ux", "uy", "vorticity", "pressure"}
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory: pytest.TempPathFactory):
+    """One run for the whole module: (output directory, stdout)."""
+    base = tmp_path_factory.mktemp("contract")
+    outdir = base / "out"
+    args = [str(INPUT / f"{NAME}.nml")]
+    for s in [*SETS, f"output.dir={outdir}"]:
+        args += ["--set", s]
+    proc = run_args(args, RANKS, TIMEOUT, base)
+    assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
+    return outdir, proc.stdout
+
+
+@pytest.fixture(scope="module")
+def h5(result):
+    with h5py.File(result[0] / f"{NAME}.h5", "r") as f:
+        yield f
+
+
+def expected_steps() -> list[int]:
+    every = round(FIELD_INTERVAL / DT)
+    return sorted({*range(0, STEPS + 1, every), STEPS})
+
+
+def text_attr(h5, name: str) -> str:
+    v = h5["run"].attrs[name]
+    return (v.decode() if isinstance(v, bytes) else str(v)).rstrip("\0")
+
+
+def num_attr(obj, name: str) -> float:
+    return float(np.asarray(obj.attrs[name]).ravel()[0])
+
+
+def test_field_groups_are_written_at_0_every_interval_and_the_end(h5) -> None:
+    """/fields/NNNNNN (six digits) at steps 0, 60, 120, 180, 240 and 250. Catches a missing
+    first or last snapshot, an interval rounded the wrong way, a duplicate last group."""
+    names = sorted(h5["fields"].keys())
+    assert all(re.fullmatch(r"\d{6}", n) for n in names), names
+    assert [int(n) for n in names] == expected_steps()
+
+
+def test_every_snapshot_has_five_fields_of_shape_ny_nx_and_its_time(h5) -> None:
+    """Shapes (ny, nx) = (height/dx, width/dx) = (160, 20), attributes step, time = step dt and
+    window_offset (0: this scene has no moving window). Catches transposed arrays, rows missing
+    from one rank's slab, time in steps or in t*."""
+    for name, g in h5["fields"].items():
+        assert set(g.keys()) == FIELDS, name
+        for f in FIELDS:
+            assert g[f].shape == (NY, NX), f"{name}/{f}: {g[f].shape}"
+            assert np.all(np.isfinite(g[f][()])), f"{name}/{f}"
+        step = int(np.asarray(g.attrs["step"]).ravel()[0])
+        assert step == int(name)
+        assert num_attr(g, "time") == pytest.approx(step * DT, rel=1e-12, abs=1e-15)
+        assert num_attr(g, "window_offset") == 0.0
+
+
+def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
+    """/run holds the full namelist with the --set values, version and git revision (the same as
+    --version and the project version in CMakeLists.txt), ranks = 2, compiler and flags, and the
+    lattice parameters of SPEC E3. Catches a namelist of the file instead of the run, a missing
+    attribute, wrong ranks, a dt or rate that is not the one the run used."""
+    run = h5["run"]
+    for key in ("namelist", "version", "git_revision", "compiler", "compiler_flags", "ranks"):
+        assert key in run.attrs, key
+    nml = text_attr(h5, "namelist")
+    # the values given by --set, in their groups
+    groups = dict(re.findall(r"&(\w+)(.*?)\n/", nml, re.S))
+    for setting in SETS:
+        key, value = setting.split("=")
+        group, name = key.split(".")
+        m = re.search(rf"^\s*{name}\s*=\s*([^\s!,]+)", groups[group], re.M)
+        assert m and float(m.group(1).replace("d", "e")) == float(value), (setting, nml)
+    # the stored namelist is itself a valid scene of the same lattice (input/README.md)
+    scene = tmp_path / f"{NAME}.nml"
+    scene.write_text(nml)
+    check = run_args([str(scene), "--check"], 1, 60.0, tmp_path)
+    assert check.returncode == 0, check.stderr
+    m = re.search(r"cells (\d+) x (\d+) = \d+, steps (\d+)", check.stdout)
+    assert m and [int(g) for g in m.groups()] == [NX, NY, STEPS], check.stdout
+
+    version = run_args(["--version"], 1, 60.0, tmp_path).stdout.strip()
+    cmake = (ROOT / "CMakeLists.txt").read_text()
+    project = re.search(r"project\(\s*dktlbm\s+VERSION\s+([0-9.]+)", cmake)
+    assert project and text_attr(h5, "version") == project.group(1)
+    assert version == f"dktlbm {text_attr(h5, 'version')} ({text_attr(h5, 'git_revision')})"
+    assert int(np.asarray(run.attrs["ranks"]).ravel()[0]) == RANKS
+    assert text_attr(h5, "compiler").strip() and re.search(r"\d", text_attr(h5, "compiler"))
+    assert text_attr(h5, "compiler_flags").strip()
+
+    s_nu = 1.0 / TAU
+    lattice = {
+        "dx": DX,
+        "dt": DT,
+        "tau": TAU,
+        "nu_lb": NU_LB,
+        "s_nu": s_nu,
+        "s_q": 8.0 * (2.0 - s_nu) / (8.0 - s_nu),  # SPEC E3
+        "nx": NX,
+        "ny": NY,
+        "steps": STEPS,
+        "mach": U_IN * DT / DX / math.sqrt(CS2),
+    }
+    for key, value in lattice.items():
+        assert num_attr(run, key) == pytest.approx(value, rel=1e-12), key
+
+
+def test_density_and_pressure_follow_the_equation_of_state(h5) -> None:
+    """rho stays within 1 % of rho_f (a nearly incompressible run) and the stored pressure is
+    p = c_s^2 (rho/rho_f - 1) rho_f (dx/dt)^2 with c_s^2 = 1/3 to round-off. Catches rho in
+    lattice units (1 instead of 1.2), p without rho_f or the velocity scale, or the full p."""
+    scale = CS2 * RHO_F * (DX / DT) ** 2
+    for name, g in h5["fields"].items():
+        rho, p = g["rho"][()], g["pressure"][()]
+        assert np.max(np.abs(rho / RHO_F - 1.0)) < 0.01, name
+        expected = scale * (rho / RHO_F - 1.0)
+        np.testing.assert_allclose(p, expected, rtol=0, atol=1e-13 * scale, err_msg=name)
+    # not vacuous: the flow has a pressure field by the end
+    assert np.ptp(h5["fields"][f"{STEPS:06d}"]["pressure"][()]) > 1e-6 * scale
+
+
+def test_vorticity_is_the_curl_of_the_stored_velocity(h5) -> None:
+    """In the interior, vorticity = d(uy)/dx - d(ux)/dy by central differences of the stored
+    ux, uy with spacing dx, in 1/s, across the slab seam of the two ranks (rows 80/81). Catches a
+    sign error, a missing 1/dt or 1/(2 dx), x and y swapped, a stale halo row at the seam."""
+    for name, g in h5["fields"].items():
+        ux, uy, w = g["ux"][()], g["uy"][()], g["vorticity"][()]
+        dvdx = (uy[1:-1, 2:] - uy[1:-1, :-2]) / (2.0 * DX)
+        dudy = (ux[2:, 1:-1] - ux[:-2, 1:-1]) / (2.0 * DX)
+        np.testing.assert_allclose(
+            w[1:-1, 1:-1], dvdx - dudy, rtol=0, atol=1e-12 * U_IN / DX, err_msg=name
+        )
+    # not vacuous: the walls shear the developing flow (the Poiseuille wall shear is 4 U/W)
+    w_end = h5["fields"][f"{STEPS:06d}"]["vorticity"][()]
+    assert np.max(np.abs(w_end[1:-1, 1:-1])) > 0.5 * U_IN / WIDTH
+
+
+def test_inlet_row_carries_the_parabolic_profile(h5) -> None:
+    """SPEC E5: the velocity end row takes u = (0, r U 4 xi (1 - xi)), xi = (i - 1/2)/nx, with
+    the ramp factor 0 < r < 1 during inlet.ramp_time and r = 1 after it, to round-off; at step 0
+    the fluid is at rest. Catches a profile on the wrong nodes (walls instead of cell centres),
+    a ramp that never finishes or overshoots, velocities in lattice units."""
+    xi = (np.arange(NX) + 0.5) / NX
+    profile = U_IN * 4.0 * xi * (1.0 - xi)
+    ramping = 0
+    for name, g in h5["fields"].items():
+        step = int(name)
+        uy0, ux0 = g["uy"][0], g["ux"][0]
+        if step == 0:
+            assert np.all(g["uy"][()] == 0.0) and np.all(g["ux"][()] == 0.0)
+            continue
+        r = 1.0
+        if step * DT < RAMP_TIME:
+            ramping += 1
+            r = uy0[NX // 2] / profile[NX // 2]
+            assert 0.0 < r < 1.0, f"{name}: ramp factor {r}"
+        np.testing.assert_allclose(uy0, r * profile, rtol=0, atol=1e-12 * U_IN, err_msg=name)
+        np.testing.assert_allclose(ux0, 0.0, rtol=0, atol=1e-12 * U_IN, err_msg=name)
+    assert ramping == 1  # step 60; steps 120 to 250 come after the ramp
+
+
+def test_xdmf_names_only_datasets_that_exist(result, h5) -> None:
+    """The .xdmf sidecar parses as XML; it has one grid per snapshot with its time, the (ny, nx)
+    topology, origin dx/2 and spacing dx; every HDF DataItem names an existing dataset of the
+    stated dimensions. Catches a stale or partial sidecar, x/y swapped, wrong paths."""
+    outdir = result[0]
+    root = ET.parse(outdir / f"{NAME}.xdmf").getroot()
+    grids = [g for g in root.iter("Grid") if g.get("GridType") == "Uniform"]
+    assert len(grids) == len(h5["fields"]), "one grid per snapshot"
+    times = sorted(float(g.find("Time").get("Value")) for g in grids)
+    assert times == pytest.approx([s * DT for s in expected_steps()], rel=1e-12, abs=1e-15)
+    items = 0
+    for grid in grids:
+        topo = grid.find("Topology")
+        assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+        geometry = grid.find("Geometry").iter("DataItem")
+        geo = {d.get("Name"): [float(v) for v in d.text.split()] for d in geometry}
+        assert geo["Origin"] == pytest.approx([DX / 2, DX / 2], rel=1e-12)
+        assert geo["Spacing"] == pytest.approx([DX, DX], rel=1e-12)
+        for item in grid.iter("DataItem"):
+            if item.get("Format") != "HDF":
+                continue
+            items += 1
+            file, path = item.text.strip().split(":", 1)
+            assert (outdir / file).is_file(), item.text
+            with h5py.File(outdir / file, "r") as f:
+                assert path in f, item.text
+                dims = [int(v) for v in item.get("Dimensions").split()]
+                assert list(f[path].shape) == dims, item.text
+    assert items == len(FIELDS) * len(grids)
+
+
+def test_log_copy_has_the_performance_line_of_stdout(result) -> None:
+    """<dir>/<name>.log is a copy of the run log: it exists, holds the same 'performance:' line
+    as standard output and every other line of it, in order. Catches a log that stops being
+    written once the file is open (only the lines from before survive)."""
+    outdir, stdout = result
+    log = (outdir / f"{NAME}.log").read_text()
+    perf = [ln for ln in stdout.splitlines() if ln.startswith("performance:")]
+    assert len(perf) == 1, stdout
+    assert perf[0] in log.splitlines(), f"no performance line in the log copy:\n{log}"
+    assert log.splitlines() == stdout.splitlines()
+
+
+def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -> None:
+    """With output.dir = '' everything goes to runs/<namelist basename>/ below the working
+    directory: <name>.h5, <name>.xdmf, <name>.log and nothing else."""
+    args = [str(INPUT / f"{NAME}.nml"), "--set", "run.steps=2"]
+    proc = run_args(args, RANKS, TIMEOUT, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["runs"]
+    made = sorted(p.name for p in (tmp_path / "runs" / NAME).iterdir())
+    assert made == [f"{NAME}.h5", f"{NAME}.log", f"{NAME}.xdmf"]
