@@ -8,8 +8,8 @@ module dkt_config
   use dkt_kinds, only: wp, cs2
   use dkt_mrt, only: e3_heat_flux_rate
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
-                          add_string, add_choice, find_key, check_key, value_text, allowed_text, &
-                          origin_of, fmt_real, itoa
+                          add_string, add_choice, add_choices, find_key, check_key, value_text, &
+                          allowed_text, origin_of, quoted, fmt_real, itoa
   use dkt_namelist, only: parse_namelist, apply_override
   implicit none
   private
@@ -55,6 +55,37 @@ module dkt_config
     real(wp) :: velocity = 0.0_wp         !! cm/s, amplitude of the initial flow
   end type initial_cfg_t
 
+  integer, parameter, public :: MAX_PARTICLES = 16 !! most particles a scene may hold
+
+  !> &particles: rigid circular particles (SPEC 3), in physical units. Element k of each array
+  !! belongs to particle k; only particles 1..count are used.
+  type, public :: particles_cfg_t
+    integer :: count = 0                                !! number of particles, 0..MAX_PARTICLES
+    real(wp) :: diameter(MAX_PARTICLES) = 0.2_wp        !! cm
+    real(wp) :: density(MAX_PARTICLES) = 1.01_wp        !! g/cm^3
+    real(wp) :: x(MAX_PARTICLES) = 1.0_wp               !! cm, centre across the channel
+    real(wp) :: y(MAX_PARTICLES) = 1.0_wp               !! cm, centre along the channel
+    real(wp) :: u(MAX_PARTICLES) = 0.0_wp               !! cm/s, initial (or prescribed) x-velocity
+    real(wp) :: v(MAX_PARTICLES) = 0.0_wp               !! cm/s, initial (or prescribed) y-velocity
+    real(wp) :: omega(MAX_PARTICLES) = 0.0_wp           !! 1/s, initial (or prescribed) spin
+    character(len=16) :: motion(MAX_PARTICLES) = 'free' !! 'free', 'fixed' or 'prescribed'
+    real(wp) :: gravity = 980.0_wp                      !! cm/s^2, along -y on the particles (E9)
+  end type particles_cfg_t
+
+  !> &coupling: how the particles and the fluid exchange momentum.
+  type, public :: coupling_cfg_t
+    character(len=16) :: bounce_back = 'yu' !! 'halfway', 'yu' or 'bfl' (E6)
+    character(len=16) :: momentum = 'paper' !! 'paper' or 'galilean' (E7)
+  end type coupling_cfg_t
+
+  !> &collision: the short-range repulsion of Wan & Turek between particles and walls.
+  type, public :: collision_cfg_t
+    real(wp) :: stiffness = 1.0e-7_wp         !! cm^3 s^2/g, eps_p of E10 (per unit depth)
+    real(wp) :: stiffness_overlap = 1.0e-7_wp !! cm^2 s^2/g, eps'_p of E10 (per unit depth)
+    real(wp) :: range = 1.0_wp                !! threshold xi of E10, in lattice spacings
+    integer :: substeps = 1                   !! particle sub-steps per fluid step
+  end type collision_cfg_t
+
   !> &run: length of the run and its guards.
   type, public :: run_cfg_t
     real(wp) :: t_end = 1.0_wp            !! s, simulated time (ignored when steps > 0)
@@ -69,6 +100,7 @@ module dkt_config
   type, public :: output_cfg_t
     character(len=256) :: dir = ''        !! output directory; '' = runs/<namelist basename>
     real(wp) :: field_interval = 0.0_wp   !! s between field outputs; 0 = at the end only
+    real(wp) :: series_interval = 0.0_wp  !! s between particle samples; 0 = every step
     logical :: overwrite = .false.        !! allow replacing an existing <dir>/<name>.h5
   end type output_cfg_t
 
@@ -81,6 +113,9 @@ module dkt_config
     type(lbm_cfg_t) :: lbm
     type(inlet_cfg_t) :: inlet
     type(initial_cfg_t) :: initial
+    type(particles_cfg_t) :: particles
+    type(coupling_cfg_t) :: coupling
+    type(collision_cfg_t) :: collision
     type(run_cfg_t) :: run
     type(output_cfg_t) :: output
   end type config_t
@@ -96,12 +131,15 @@ module dkt_config
     integer :: ny = 0                !! cells along the channel
     integer :: steps = 0             !! time steps of the run
     integer :: field_every = 0       !! steps between field outputs; 0 = at the end only
+    integer :: series_every = 1      !! steps between particle samples (>= 1)
     real(wp) :: force_lb(2) = 0.0_wp !! body force in lattice units
     real(wp) :: u_in_lb = 0.0_wp     !! inlet velocity in lattice units
     real(wp) :: u_init_lb = 0.0_wp   !! initial-flow amplitude in lattice units
     real(wp) :: u_scale_lb = 0.0_wp  !! largest expected lattice speed
     real(wp) :: mach = 0.0_wp        !! u_scale_lb / c_s
     real(wp) :: reynolds = 0.0_wp    !! U width / nu with U = u_scale_lb dx/dt (physical)
+    real(wp) :: cells_per_diameter = 0.0_wp !! smallest used diameter / dx; 0 without particles
+    logical :: particles_on = .false. !! the scene has particles (count > 0)
   end type lattice_params_t
 
   !> The command line: dktlbm FILE [--set g.k=v ...] [--check] [--print-defaults] [--help]
@@ -122,6 +160,9 @@ module dkt_config
   character(len=*), parameter :: NL = new_line('a')
   real(wp), parameter :: WHOLE_TOL = 1.0e-6_wp !! how close width/dx must be to a whole number
   real(wp), parameter :: MAX_CELLS = 1.0e9_wp  !! more cells on one axis is surely a typing error
+  real(wp), parameter :: MIN_CELLS_PER_D = 4.0_wp  !! fewer cells per diameter: refused
+  real(wp), parameter :: GOOD_CELLS_PER_D = 8.0_wp !! fewer cells per diameter: a warning
+  real(wp), parameter :: CONTACT_TOL = 1.0e-12_wp  !! relative round-off of a typed distance
 
 contains
 
@@ -174,6 +215,47 @@ contains
     call add_real(reg, 'initial', 'velocity', c%initial%velocity, 'cm/s', &
                   'amplitude of the initial flow', ge=0.0_wp)
 
+    call add_integer(reg, 'particles', 'count', c%particles%count, '-', &
+                     'number of particles; particle k uses element k of each array', &
+                     ge=0, le=MAX_PARTICLES)
+    call add_reals(reg, 'particles', 'diameter', c%particles%diameter, 'cm', &
+                   'particle diameter', gt=0.0_wp)
+    call add_reals(reg, 'particles', 'density', c%particles%density, 'g/cm^3', &
+                   'particle density', gt=0.0_wp)
+    call add_reals(reg, 'particles', 'x', c%particles%x, 'cm', &
+                   'x of the centre at t = 0 (across the channel)')
+    call add_reals(reg, 'particles', 'y', c%particles%y, 'cm', &
+                   'y of the centre at t = 0 (along the channel)')
+    call add_reals(reg, 'particles', 'u', c%particles%u, 'cm/s', &
+                   'x-velocity at t = 0, kept if prescribed, 0 if fixed')
+    call add_reals(reg, 'particles', 'v', c%particles%v, 'cm/s', &
+                   'y-velocity at t = 0, kept if prescribed, 0 if fixed')
+    call add_reals(reg, 'particles', 'omega', c%particles%omega, '1/s', &
+                   'counter-clockwise angular velocity at t = 0, kept if prescribed, 0 if fixed')
+    call add_choices(reg, 'particles', 'motion', c%particles%motion, 'free fixed prescribed', &
+                     'free (moved by fluid and gravity, E8), fixed (at rest) or prescribed '// &
+                     '(u, v, omega kept)')
+    call add_real(reg, 'particles', 'gravity', c%particles%gravity, 'cm/s^2', &
+                  'gravity on the particles, along -y; acts as weight minus buoyancy (E9)', &
+                  ge=0.0_wp)
+
+    call add_choice(reg, 'coupling', 'bounce_back', c%coupling%bounce_back, 'halfway yu bfl', &
+                    'bounce-back on the particle surface: half-way, Yu et al. or BFL (E6)')
+    call add_choice(reg, 'coupling', 'momentum', c%coupling%momentum, 'paper galilean', &
+                    'momentum exchange: the paper''s rule or Galilean-invariant (E7)')
+
+    call add_real(reg, 'collision', 'stiffness', c%collision%stiffness, 'cm^3 s^2/g', &
+                  'eps_p of E10 for a gap below range (wall: eps_p/2, E11)', gt=0.0_wp)
+    call add_real(reg, 'collision', 'stiffness_overlap', c%collision%stiffness_overlap, &
+                  'cm^2 s^2/g', 'eps''_p of E10 for overlapping particles (wall: half, E11)', &
+                  gt=0.0_wp)
+    call add_real(reg, 'collision', 'range', c%collision%range, '-', &
+                  'threshold xi of E10 in lattice spacings: repulsion acts below this gap', &
+                  ge=0.0_wp)
+    call add_integer(reg, 'collision', 'substeps', c%collision%substeps, '-', &
+                     'particle sub-steps per fluid time step (for a stiff repulsion)', &
+                     ge=1, le=1000)
+
     call add_real(reg, 'run', 't_end', c%run%t_end, 's', &
                   'simulated time (ignored when steps > 0)', gt=0.0_wp)
     call add_integer(reg, 'run', 'steps', c%run%steps, '-', &
@@ -192,6 +274,8 @@ contains
                     'output directory; empty = runs/<namelist basename>')
     call add_real(reg, 'output', 'field_interval', c%output%field_interval, 's', &
                   'time between field outputs; 0 = fields at the end only', ge=0.0_wp)
+    call add_real(reg, 'output', 'series_interval', c%output%series_interval, 's', &
+                  'time between samples of the /particles series; 0 = every step', ge=0.0_wp)
     call add_logical(reg, 'output', 'overwrite', c%output%overwrite, &
                      'allow replacing an existing <dir>/<name>.h5')
   end subroutine build_registry
@@ -199,13 +283,18 @@ contains
   !> Defaults, then the namelist `text`, then the `overrides` ('group.key=value'), then
   !! validation. `file` names the text in messages and gives cfg%name. On error `err` holds one
   !! message naming file (and line), group, key, value and what is allowed; '' if valid.
-  subroutine config_load(cfg, text, file, overrides, err)
+  !! `warnings`: what a valid configuration may get wrong (e.g. a coarsely resolved particle),
+  !! one message a line, in the same form; '' when there is none or when `err` is set.
+  subroutine config_load(cfg, text, file, overrides, err, warnings)
     type(config_t), intent(out), target :: cfg !! intent(out): every component starts at default
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
     character(len=:), allocatable, intent(out) :: err
+    character(len=:), allocatable, intent(out), optional :: warnings
+    character(len=:), allocatable :: found
     type(registry_t) :: reg
     integer :: j
+    if (present(warnings)) warnings = ''
     cfg%file = file
     cfg%name = basename(file)
     call build_registry(cfg, reg)
@@ -216,31 +305,41 @@ contains
       call apply_override(reg, overrides(j), file, err)
       if (len(err) > 0) return
     end do
-    call validate(cfg, reg, err)
+    call validate(cfg, reg, err, found)
+    if (len(err) > 0) found = ''
+    if (present(warnings)) warnings = found
   end subroutine config_load
 
-  !> Validate a configuration built or changed in code ('' if valid).
-  subroutine config_validate(cfg, err)
+  !> Validate a configuration built or changed in code ('' if valid); `warnings` as in
+  !! config_load.
+  subroutine config_validate(cfg, err, warnings)
     type(config_t), intent(in) :: cfg
     character(len=:), allocatable, intent(out) :: err
+    character(len=:), allocatable, intent(out), optional :: warnings
+    character(len=:), allocatable :: found
     type(config_t), target :: c
     type(registry_t) :: reg
     c = cfg
     if (.not. allocated(c%file)) c%file = ''
     call build_registry(c, reg)
-    call validate(c, reg, err)
+    call validate(c, reg, err, found)
+    if (len(err) > 0) found = ''
+    if (present(warnings)) warnings = found
   end subroutine config_validate
 
   !> Every check of a configuration: each key's range or choices, then the rules that join
   !! keys. Messages name where the key was set (file:line or --set), else the file.
-  subroutine validate(c, reg, err)
+  !! `warnings`: newline-separated, '' if none; incomplete when `err` is set.
+  subroutine validate(c, reg, err, warnings)
     type(config_t), intent(in) :: c
     type(registry_t), intent(in) :: reg
     character(len=:), allocatable, intent(out) :: err
+    character(len=:), allocatable, intent(out) :: warnings
     type(lattice_params_t) :: lp
     real(wp) :: n_steps
     integer :: j
 
+    warnings = ''
     do j = 1, size(reg%keys)
       call check_key(reg%keys(j), c%file, err)
       if (len(err) > 0) return
@@ -267,6 +366,13 @@ contains
       call check_cells('height', 'ny', d%height)
       if (len(err) > 0) return
     end associate
+
+    do j = 1, c%particles%count
+      call check_particle(j)
+      if (len(err) > 0) return
+    end do
+    call check_contacts()
+    if (len(err) > 0) return
 
     lp = lattice_from(c)
     if (c%run%steps == 0) then
@@ -317,14 +423,164 @@ contains
               key//'/n, e.g. dx = '//fmt_real(length/anint(r))//' ('//itoa(nint(r))//' cells)'
       end if
     end subroutine check_cells
+
+    !> '&particles key(k) = value'
+    function item(key, k, x) result(s)
+      character(len=*), intent(in) :: key
+      integer, intent(in) :: k
+      real(wp), intent(in) :: x
+      character(len=:), allocatable :: s
+      s = '&particles '//key//'('//itoa(k)//') = '//fmt_real(x)
+    end function item
+
+    !> Particle k at t = 0: a fixed particle has no velocity, its centre lies in the channel
+    !! at least one radius from every wall (touching a wall is an overlap: the bounce-back
+    !! and the repulsion of E11 would start from a degenerate contact), and its diameter spans
+    !! enough lattice cells for the boundary links of E6-E7 (SPEC 3).
+    subroutine check_particle(k)
+      integer, intent(in) :: k
+      real(wp) :: cells
+      character(len=:), allocatable :: key, both
+      associate (p => c%particles, d => c%domain)
+        if (p%motion(k) == 'fixed') then
+          key = ''
+          if (abs(p%omega(k)) > 0.0_wp) key = 'omega'
+          if (abs(p%v(k)) > 0.0_wp) key = 'v'
+          if (abs(p%u(k)) > 0.0_wp) key = 'u'
+          if (len(key) > 0) then
+            err = src(key, 'particles')//': &particles motion('//itoa(k)//') = ''fixed'' and '// &
+                  item(key, k, merge(p%u(k), merge(p%v(k), p%omega(k), key == 'v'), key == 'u'))// &
+                  ': a fixed particle does not move, so its velocity is not used; allowed: '// &
+                  'u('//itoa(k)//') = v('//itoa(k)//') = omega('//itoa(k)//') = 0 with '// &
+                  'motion = ''fixed''; set them to 0, or use motion = ''prescribed'' to keep '// &
+                  'the particle moving at that velocity'
+            return
+          end if
+        end if
+        call check_position('x', k, p%x(k), 'width', d%width, d%sides == 'wall', &
+                            d%sides == 'wall', '&domain sides = '//quoted(trim(d%sides)))
+        if (len(err) > 0) return
+        call check_position('y', k, p%y(k), 'height', d%height, d%lower == 'wall', &
+                            d%upper == 'wall', '&domain lower = '//quoted(trim(d%lower))// &
+                            ', upper = '//quoted(trim(d%upper)))
+        if (len(err) > 0) return
+
+        cells = p%diameter(k)/c%lbm%dx
+        both = origin_of(reg, 'lbm', 'dx', src('diameter', 'particles'))//': '// &
+               item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
+               ' give '//fmt_real(cells)//' cells per diameter'
+        if (cells < MIN_CELLS_PER_D - WHOLE_TOL) then
+          err = both//'; allowed: diameter('//itoa(k)//')/dx >= '// &
+                itoa(nint(MIN_CELLS_PER_D))//', i.e. dx <= diameter('//itoa(k)//')/'// &
+                itoa(nint(MIN_CELLS_PER_D))//' = '// &
+                fmt_real(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
+        else if (cells < GOOD_CELLS_PER_D - WHOLE_TOL) then
+          if (len(warnings) > 0) warnings = warnings//NL
+          warnings = warnings//both//', fewer than '//itoa(nint(GOOD_CELLS_PER_D))// &
+                     ': the force on particle '//itoa(k)//' and its motion will be '// &
+                     'inaccurate; dx <= diameter('//itoa(k)//')/'// &
+                     itoa(nint(GOOD_CELLS_PER_D))//' = '// &
+                     fmt_real(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
+                     itoa(nint(GOOD_CELLS_PER_D))
+        end if
+      end associate
+    end subroutine check_particle
+
+    !> Coordinate `key` = `pos` of the centre of particle k within 0..length (`dim`); a wall
+    !! at the low (`lo_wall`) or high end (`hi_wall`) must be more than one radius away.
+    subroutine check_position(key, k, pos, dim, length, lo_wall, hi_wall, ends)
+      character(len=*), intent(in) :: key, dim, ends
+      integer, intent(in) :: k
+      real(wp), intent(in) :: pos, length
+      logical, intent(in) :: lo_wall, hi_wall
+      real(wp) :: r, lo, hi
+      character(len=:), allocatable :: head, allowed, what
+      r = 0.5_wp*c%particles%diameter(k)
+      lo = merge(r, 0.0_wp, lo_wall)
+      hi = merge(length - r, length, hi_wall)
+      if ((pos > lo .or. (.not. lo_wall .and. pos >= lo)) .and. &
+          (pos < hi .or. (.not. hi_wall .and. pos <= hi))) return
+      head = src(key, 'particles')//': '//item(key, k, pos)//' with '// &
+             item('diameter', k, c%particles%diameter(k))//', &domain '//dim//' = '// &
+             val('domain', dim)//' and '//ends//': '
+      allowed = fmt_real(lo)//trim(merge(' < ', ' <=', lo_wall))//' '//key//'('//itoa(k)// &
+                ')'//trim(merge(' < ', ' <=', hi_wall))//' '//fmt_real(hi)
+      if (lo >= hi) then
+        err = head//'particle '//itoa(k)//' is not narrower than the channel between its '// &
+              'walls; allowed: diameter('//itoa(k)//') < '//dim//' = '//val('domain', dim)
+        return
+      else if (pos < 0.0_wp .or. pos > length) then
+        what = 'the centre of particle '//itoa(k)//' is outside the channel, 0 <= '//key// &
+               ' <= '//fmt_real(length)
+      else if (pos <= lo) then
+        what = 'particle '//itoa(k)//' overlaps the wall at '//key//' = 0 at t = 0 (gap '// &
+               key//' - diameter/2 = '//fmt_real(pos - r)//' cm; touching counts as overlap)'
+      else
+        what = 'particle '//itoa(k)//' overlaps the wall at '//key//' = '//fmt_real(length)// &
+               ' at t = 0 (gap '//dim//' - '//key//' - diameter/2 = '// &
+               fmt_real(length - pos - r)//' cm; touching counts as overlap)'
+      end if
+      err = head//what//'; allowed: '//allowed//' (the centre at least one radius from a wall)'
+    end subroutine check_position
+
+    !> No two particles overlap at t = 0: the distance of their centres, across a periodic
+    !! boundary if the shorter way, is at least the sum of their radii (E10 would otherwise
+    !! start with its overlap branch). Touching is allowed, to within round-off (CONTACT_TOL),
+    !! so that centres typed exactly one contact distance apart are accepted.
+    subroutine check_contacts()
+      real(wp) :: gx, gy, dist, contact
+      integer :: k, m
+      associate (p => c%particles)
+        do k = 1, p%count
+          do m = k + 1, p%count
+            gx = p%x(m) - p%x(k)
+            gy = p%y(m) - p%y(k)
+            if (c%domain%sides == 'periodic') gx = gx - c%domain%width*anint(gx/c%domain%width)
+            if (c%domain%lower == 'periodic') &
+              gy = gy - c%domain%height*anint(gy/c%domain%height)
+            dist = hypot(gx, gy)
+            contact = 0.5_wp*(p%diameter(k) + p%diameter(m))
+            if (dist < contact*(1.0_wp - CONTACT_TOL)) then
+              err = origin_of(reg, 'particles', 'y', src('x', 'particles'))// &
+                    ': &particles: particles '//itoa(k)//' and '//itoa(m)//' overlap at t = 0: '// &
+                    pair('x', k, m)//', '//pair('y', k, m)//', '// &
+                    pair('diameter', k, m)//': the distance of the centres '//fmt_real(dist)// &
+                    ' cm is less than the contact distance (diameter('//itoa(k)// &
+                    ') + diameter('//itoa(m)//'))/2 = '//fmt_real(contact)//' cm; allowed: '// &
+                    'a distance of at least '//fmt_real(contact)//' cm; move them apart'
+              return
+            end if
+          end do
+        end do
+      end associate
+    end subroutine check_contacts
+
+    !> 'key(k) = a and key(m) = b'
+    function pair(key, k, m) result(s)
+      character(len=*), intent(in) :: key
+      integer, intent(in) :: k, m
+      character(len=:), allocatable :: s
+      real(wp) :: a, b
+      select case (key)
+      case ('x')
+        a = c%particles%x(k); b = c%particles%x(m)
+      case ('y')
+        a = c%particles%y(k); b = c%particles%y(m)
+      case default
+        a = c%particles%diameter(k); b = c%particles%diameter(m)
+      end select
+      s = key//'('//itoa(k)//') = '//fmt_real(a)//' and '//key//'('//itoa(m)//') = '//fmt_real(b)
+    end function pair
   end subroutine validate
 
   !> The lattice-unit parameters of a configuration (E3, E4); `cfg` must be valid.
-  subroutine derive_lattice(cfg, lp, err)
+  !! `warnings` as in config_load.
+  subroutine derive_lattice(cfg, lp, err, warnings)
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(out) :: lp
     character(len=:), allocatable, intent(out) :: err
-    call config_validate(cfg, err)
+    character(len=:), allocatable, intent(out), optional :: warnings
+    call config_validate(cfg, err, warnings)
     if (len(err) == 0) lp = lattice_from(cfg)
   end subroutine derive_lattice
 
@@ -354,6 +610,7 @@ contains
     lp%field_every = 0
     if (c%output%field_interval > 0.0_wp) &
       lp%field_every = max(1, count_of(c%output%field_interval/lp%dt))
+    lp%series_every = max(1, count_of(c%output%series_interval/lp%dt))
     lp%force_lb = c%fluid%body_force*lp%dt**2/lp%dx
     lp%u_in_lb = c%inlet%velocity*lp%dt/lp%dx
     lp%u_init_lb = c%initial%velocity*lp%dt/lp%dx
@@ -363,6 +620,10 @@ contains
                         norm2(lp%force_lb)*width_lb**2/(8.0_wp*lp%nu_lb))
     lp%mach = lp%u_scale_lb/sqrt(cs2)
     lp%reynolds = (lp%u_scale_lb*lp%dx/lp%dt)*c%domain%width/nu
+    lp%particles_on = c%particles%count > 0
+    lp%cells_per_diameter = 0.0_wp
+    if (lp%particles_on) &
+      lp%cells_per_diameter = minval(c%particles%diameter(1:c%particles%count))/lp%dx
   contains
     pure integer function count_of(x)
       real(wp), intent(in) :: x

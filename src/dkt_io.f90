@@ -1,44 +1,41 @@
 !> Parallel HDF5 output of a run: one file `<dir>/<name>.h5` with the run metadata (/run), the
-!> field snapshots (/fields/NNNNNN/<field>) and small time series (/<group>/<name>), plus the
-!> `<dir>/<name>.xdmf` sidecar that lets ParaView/VisIt open the fields. All HDF5 of dktlbm lives
-!> here; every HDF5 return code is checked.
+!> field snapshots (/fields/NNNNNN/<field>), small time series (/<group>/<name>, h5py shape
+!> (n_samples,)), tables with one column per particle (/<group>/<name>, h5py shape (n_samples,
+!> ncols)) and attributes on any group or dataset, plus the `<dir>/<name>.xdmf` sidecar (module
+!> dkt_xdmf) that lets ParaView/VisIt open the fields. All HDF5 of dktlbm lives here; every HDF5
+!> return code is checked.
 !>
 !> The solver is decomposed in 1-D slabs along y: a rank holds global rows y0+1 .. y0+nyl of
 !> every field, all nx columns, as a contiguous array (nx, nyl). Each rank writes its rows into a
 !> hyperslab of a 2-D dataset of Fortran dims (nx, ny) (h5py: shape (ny, nx)) with one collective
 !> transfer; a rank without rows takes part with an empty selection. Every procedure except
 !> io_file_exists is collective over the communicator given to io_open, and every rank must pass
-!> the same metadata (names, times, attributes); only the field rows differ between ranks.
+!> the same metadata (names, times, shapes); the field rows differ between ranks, and of series,
+!> tables and attributes only rank 0's values are stored.
 module dkt_io
-  use iso_c_binding, only: c_char, c_int, c_null_char
-  use dkt_kinds, only: wp
+  use iso_c_binding, only: c_null_char
+  use dkt_kinds, only: wp, mpi_wp
   use dkt_errors, only: fatal_local
-  use mpi_f08, only: MPI_Comm, MPI_INFO_NULL, MPI_LOGICAL, MPI_INTEGER, MPI_LOR, MPI_SUM, &
-                     MPI_Comm_rank, MPI_Bcast, MPI_Allreduce
+  use dkt_xdmf, only: xdmf_t, xdmf_init, xdmf_add_frame, xdmf_write, xdmf_delete, xdmf_free
+  use mpi_f08, only: MPI_Comm, MPI_INFO_NULL, MPI_LOGICAL, MPI_INTEGER, MPI_CHARACTER, MPI_LOR, &
+                     MPI_SUM, MPI_MAX, MPI_Comm_rank, MPI_Bcast, MPI_Allreduce
   use hdf5, only: hid_t, hsize_t, size_t, h5open_f, h5close_f, h5kind_to_type, H5_REAL_KIND, &
                   H5_INTEGER_KIND, h5fcreate_f, h5fclose_f, h5fflush_f, H5F_ACC_EXCL_F, &
                   H5F_ACC_TRUNC_F, H5F_SCOPE_GLOBAL_F, h5pcreate_f, h5pclose_f, &
                   H5P_FILE_ACCESS_F, H5P_DATASET_XFER_F, H5P_DATASET_CREATE_F, &
                   h5pset_fapl_mpio_f, h5pset_dxpl_mpio_f, H5FD_MPIO_COLLECTIVE_F, h5eset_auto_f, &
                   h5pset_coll_metadata_write_f, h5pset_all_coll_metadata_ops_f, h5pset_chunk_f, &
-                  h5gcreate_f, h5gopen_f, h5gclose_f, h5lexists_f, h5screate_f, &
+                  h5gcreate_f, h5gclose_f, h5oopen_f, h5oclose_f, h5lexists_f, h5screate_f, &
                   h5screate_simple_f, h5sclose_f, h5sselect_hyperslab_f, h5sselect_none_f, &
-                  h5sget_simple_extent_dims_f, H5S_SCALAR_F, H5S_SELECT_SET_F, H5S_UNLIMITED_F, &
-                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dget_space_f, &
-                  h5dset_extent_f, h5acreate_f, h5awrite_f, h5aclose_f, h5tcopy_f, h5tset_size_f, &
+                  h5sget_simple_extent_dims_f, h5sget_simple_extent_ndims_f, H5S_SCALAR_F, &
+                  H5S_SELECT_SET_F, H5S_UNLIMITED_F, h5dcreate_f, h5dopen_f, h5dclose_f, &
+                  h5dwrite_f, h5dget_space_f, h5dset_extent_f, h5acreate_f, h5awrite_f, &
+                  h5aclose_f, h5aexists_f, h5adelete_f, h5tcopy_f, h5tset_size_f, &
                   h5tset_strpad_f, h5tclose_f, H5T_NATIVE_CHARACTER, H5T_STR_NULLPAD_F
   implicit none
   private
-  public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_close, &
-            io_file_exists
-
-  !> One field snapshot already in the file, remembered for the XDMF sidecar.
-  type :: frame_t
-    integer :: step = 0
-    real(wp) :: t = 0.0_wp      !! s
-    real(wp) :: offset = 0.0_wp !! cm, window offset along y
-    character(len=:), allocatable :: fields(:) !! dataset names in /fields/NNNNNN
-  end type frame_t
+  public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
+            io_write_attribute, io_close, io_file_exists
 
   !> An open output file and what has been written to it.
   type, public :: io_t
@@ -57,9 +54,17 @@ module dkt_io
     character(len=:), allocatable :: name      !! file base name, no extension
     character(len=:), allocatable :: path      !! <dir>/<name>.h5
     character(len=:), allocatable :: xdmf_path !! <dir>/<name>.xdmf
-    integer :: nframes = 0
-    type(frame_t), allocatable :: frames(:)
+    type(xdmf_t) :: xdmf !! the snapshots listed in the sidecar
   end type io_t
+
+  !> Set attribute `name` of the group or dataset at `path` (e.g. '/particles' or
+  !! '/particles/x') to rank 0's value: a real(wp), an integer or a character string (stored as
+  !! given, trailing blanks included; h5py reads bytes). When nothing is at `path` yet, it is
+  !! created as a group, with any missing group above it. An attribute of the same name is
+  !! replaced. Collective; not flushed (io_write_fields and io_close flush).
+  interface io_write_attribute
+    module procedure write_attribute_real, write_attribute_int, write_attribute_text
+  end interface io_write_attribute
 
   !> Files open through io_open in this process. The HDF5 library is process-global state: it is
   !> opened with the first file and closed with the last, so that closing one io_t never
@@ -67,14 +72,6 @@ module dkt_io
   integer :: n_open_files = 0
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
-
-  interface
-    function c_rename(old, new) bind(c, name='rename') result(status)
-      import :: c_char, c_int
-      character(kind=c_char), intent(in) :: old(*), new(*)
-      integer(c_int) :: status
-    end function c_rename
-  end interface
 
 contains
 
@@ -176,13 +173,11 @@ contains
     io%y0 = y0
     io%nyl = nyl
     io%dx = dx
-    io%nframes = 0
-    if (allocated(io%frames)) deallocate (io%frames)
-    allocate (io%frames(8))
+    call xdmf_init(io%xdmf, io%xdmf_path, io%name//'.h5', nx, ny, dx)
     io%is_open = .true.
 
     ! A sidecar left by an earlier run would name groups this file does not have.
-    if (io%rank == 0) call delete_file(io%xdmf_path)
+    if (io%rank == 0) call xdmf_delete(io%xdmf)
   end subroutine io_open
 
   !> Write group /run: the configuration, provenance and one real attribute per lattice
@@ -206,14 +201,14 @@ contains
                                                       'in size')
     call h5gcreate_f(io%file_id, 'run', grp, hdferr)
     call check(hdferr, 'h5gcreate_f(/run)', io%path)
-    call put_string_attr(grp, 'namelist', namelist_text, io%path)
-    call put_string_attr(grp, 'version', version, io%path)
-    call put_string_attr(grp, 'git_revision', git_revision, io%path)
-    call put_int_attr(grp, 'ranks', nranks, io%int_type, io%path)
-    call put_string_attr(grp, 'compiler', compiler, io%path)
-    call put_string_attr(grp, 'compiler_flags', flags, io%path)
+    call put_attr(io, grp, 'namelist', s=namelist_text)
+    call put_attr(io, grp, 'version', s=version)
+    call put_attr(io, grp, 'git_revision', s=git_revision)
+    call put_attr(io, grp, 'ranks', i=nranks)
+    call put_attr(io, grp, 'compiler', s=compiler)
+    call put_attr(io, grp, 'compiler_flags', s=flags)
     do k = 1, size(names)
-      call put_real_attr(grp, trim(names(k)), values(k), io%real_type, io%path)
+      call put_attr(io, grp, trim(names(k)), r=values(k))
     end do
     call h5gclose_f(grp, hdferr)
     call check(hdferr, 'h5gclose_f(/run)', io%path)
@@ -242,24 +237,18 @@ contains
                                                          'shape (nx, nyl, size(names))')
     if (step < 0) call fatal_local('io_write_fields: step must be >= 0')
     gname = field_group(step)
-    call h5lexists_f(io%file_id, 'fields', exists, hdferr)
-    call check(hdferr, 'h5lexists_f(/fields)', io%path)
-    if (.not. exists) then
-      call h5gcreate_f(io%file_id, 'fields', grp, hdferr)
-      call check(hdferr, 'h5gcreate_f(/fields)', io%path)
-      call h5gclose_f(grp, hdferr)
-      call check(hdferr, 'h5gclose_f(/fields)', io%path)
-    else
-      call h5lexists_f(io%file_id, gname, exists, hdferr)
-      call check(hdferr, 'h5lexists_f('//gname//')', io%path)
-      if (exists) call fatal_local('io_write_fields: '//gname//' is already in '''// &
-                                   io%path//'''; each step is written once')
-    end if
+    grp = open_object(io, 'fields') ! created with the first snapshot
+    call h5oclose_f(grp, hdferr)
+    call check(hdferr, 'h5oclose_f(/fields)', io%path)
+    call h5lexists_f(io%file_id, gname, exists, hdferr)
+    call check(hdferr, 'h5lexists_f('//gname//')', io%path)
+    if (exists) call fatal_local('io_write_fields: '//gname//' is already in '''// &
+                                 io%path//'''; each step is written once')
     call h5gcreate_f(io%file_id, gname, grp, hdferr)
     call check(hdferr, 'h5gcreate_f('//gname//')', io%path)
-    call put_real_attr(grp, 'time', t, io%real_type, io%path)
-    call put_int_attr(grp, 'step', step, io%int_type, io%path)
-    call put_real_attr(grp, 'window_offset', offset, io%real_type, io%path)
+    call put_attr(io, grp, 'time', r=t)
+    call put_attr(io, grp, 'step', i=step)
+    call put_attr(io, grp, 'window_offset', r=offset)
 
     gdims = [integer(hsize_t) :: io%nx, io%ny]
     start = [integer(hsize_t) :: 0, io%y0]
@@ -280,74 +269,93 @@ contains
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
 
-    call add_frame(io, step, t, offset, names)
-    if (io%rank == 0) call write_xdmf(io)
+    call xdmf_add_frame(io%xdmf, step, t, offset, gname, names)
+    if (io%rank == 0) call xdmf_write(io%xdmf)
   end subroutine io_write_fields
 
-  !> Append one row to the extendible 1-D datasets /<group>/<names(k)>, created on first use.
-  !! The values of rank 0 are written; the other ranks pass an array of the same size. `group`
-  !! is one level below the root (e.g. 'diagnostics'). Not flushed: io_write_fields and io_close
+  !> Append one row to the extendible 1-D datasets /<group>/<names(k)> (h5py shape
+  !! (n_samples,)), created on first use, with the group. The values of rank 0 are written; the
+  !! other ranks pass an array of the same size. Not flushed: io_write_fields and io_close
   !! flush.
   subroutine io_write_series(io, group, names, values)
     type(io_t), intent(inout) :: io
-    character(len=*), intent(in) :: group    !! group name under /, one level
+    character(len=*), intent(in) :: group    !! group path under /, e.g. 'diagnostics'
     character(len=*), intent(in) :: names(:) !! one dataset per name
     real(wp), intent(in) :: values(:)        !! the new row (rank 0's values are kept)
-    integer(hid_t) :: grp, dcpl, fspace, dset
-    integer(hsize_t) :: dims(1), maxdims(1)
-    integer(hsize_t), parameter :: chunk(1) = [1024_hsize_t]
-    integer :: hdferr, k
-    logical :: exists
 
     call require_open(io, 'io_write_series')
     if (size(names) /= size(values)) call fatal_local('io_write_series: names and values '// &
                                                       'differ in size')
-    call h5lexists_f(io%file_id, trim(group), exists, hdferr)
-    call check(hdferr, 'h5lexists_f(/'//trim(group)//')', io%path)
-    if (exists) then
-      call h5gopen_f(io%file_id, trim(group), grp, hdferr)
-    else
-      call h5gcreate_f(io%file_id, trim(group), grp, hdferr)
-    end if
-    call check(hdferr, 'h5gcreate_f/h5gopen_f(/'//trim(group)//')', io%path)
-    do k = 1, size(names)
-      call h5lexists_f(grp, trim(names(k)), exists, hdferr)
-      call check(hdferr, 'h5lexists_f', io%path)
-      if (exists) then
-        call h5dopen_f(grp, trim(names(k)), dset, hdferr)
-        call check(hdferr, 'h5dopen_f('//trim(names(k))//')', io%path)
-      else
-        ! Extendible datasets must be chunked; one chunk holds many rows.
-        call h5screate_simple_f(1, [0_hsize_t], fspace, hdferr, maxdims=[H5S_UNLIMITED_F])
-        call check(hdferr, 'h5screate_simple_f', io%path)
-        call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
-        call check(hdferr, 'h5pcreate_f(dataset create)', io%path)
-        call h5pset_chunk_f(dcpl, 1, chunk, hdferr)
-        call check(hdferr, 'h5pset_chunk_f', io%path)
-        call h5dcreate_f(grp, trim(names(k)), io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
-        call check(hdferr, 'h5dcreate_f('//trim(names(k))//')', io%path)
-        call h5pclose_f(dcpl, hdferr)
-        call check(hdferr, 'h5pclose_f', io%path)
-        call h5sclose_f(fspace, hdferr)
-        call check(hdferr, 'h5sclose_f', io%path)
-      end if
-      call h5dget_space_f(dset, fspace, hdferr)
-      call check(hdferr, 'h5dget_space_f', io%path)
-      call h5sget_simple_extent_dims_f(fspace, dims, maxdims, hdferr)
-      call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f', io%path)
-      call h5sclose_f(fspace, hdferr)
-      call check(hdferr, 'h5sclose_f', io%path)
-      call h5dset_extent_f(dset, dims + 1, hdferr)
-      call check(hdferr, 'h5dset_extent_f('//trim(names(k))//')', io%path)
-      ! Rank 0 writes the new row; the others join the collective write with nothing.
-      call write_block(io, dset, dims, merge(one, [0_hsize_t], io%rank == 0), values(k:k), &
-                       trim(group)//'/'//trim(names(k)))
-      call h5dclose_f(dset, hdferr)
-      call check(hdferr, 'h5dclose_f', io%path)
-    end do
-    call h5gclose_f(grp, hdferr)
-    call check(hdferr, 'h5gclose_f(/'//trim(group)//')', io%path)
+    call append_sample(io, group, names, reshape(values, [1, size(values)]), 1, &
+                       'io_write_series')
   end subroutine io_write_series
+
+  !> Append one sample to the extendible 2-D datasets /<group>/<names(k)>, created on first use
+  !! with the group: h5py sees shape (n_samples, ncols), one column per particle, where
+  !! values(:, k) is the new row of names(k). The column count is fixed when a dataset is
+  !! created. The values of rank 0 are written; the other ranks pass an array of the same
+  !! shape. A group may hold series and tables side by side (/particles/t and /particles/x).
+  !! Not flushed: io_write_fields and io_close flush.
+  subroutine io_write_table(io, group, names, values)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: group    !! group path under /, e.g. 'particles'
+    character(len=*), intent(in) :: names(:) !! one dataset per name, e.g. 'x', 'y', 'omega'
+    real(wp), intent(in) :: values(:, :)     !! (ncols, size(names)), rank 0's are kept
+    integer :: ext(4)
+
+    call require_open(io, 'io_write_table')
+    if (size(values, 2) /= size(names) .or. size(values, 1) < 1) &
+      call fatal_local('io_write_table: values must have shape (ncols, size(names)), ncols >= 1')
+    ! The dataset shapes are collective metadata: a rank with another shape would corrupt them.
+    call MPI_Allreduce([shape(values), -shape(values)], ext, 4, MPI_INTEGER, MPI_MAX, io%comm)
+    if (any(ext(1:2) /= -ext(3:4))) call fatal_local('io_write_table: the ranks pass values '// &
+                                                     'of different shapes for '//trim(group))
+    call append_sample(io, group, names, values, 2, 'io_write_table')
+  end subroutine io_write_table
+
+  subroutine write_attribute_real(io, path, name, value)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: path !! group or dataset, e.g. '/diagnostics'
+    character(len=*), intent(in) :: name !! attribute name
+    real(wp), intent(in) :: value        !! rank 0's value is stored
+    real(wp) :: v
+
+    call require_open(io, 'io_write_attribute')
+    v = value
+    call MPI_Bcast(v, 1, mpi_wp, 0, io%comm)
+    call set_attribute(io, path, name, r=v)
+  end subroutine write_attribute_real
+
+  subroutine write_attribute_int(io, path, name, value)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: path !! group or dataset, e.g. '/particles'
+    character(len=*), intent(in) :: name !! attribute name
+    integer, intent(in) :: value         !! rank 0's value is stored
+    integer :: v
+
+    call require_open(io, 'io_write_attribute')
+    v = value
+    call MPI_Bcast(v, 1, MPI_INTEGER, 0, io%comm)
+    call set_attribute(io, path, name, i=v)
+  end subroutine write_attribute_int
+
+  subroutine write_attribute_text(io, path, name, value)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: path  !! group or dataset, e.g. '/diagnostics'
+    character(len=*), intent(in) :: name  !! attribute name
+    character(len=*), intent(in) :: value !! rank 0's value is stored
+    character(len=:), allocatable :: v
+    integer :: n
+
+    call require_open(io, 'io_write_attribute')
+    ! The length first: the other ranks' strings may be longer or shorter than rank 0's.
+    n = len(value)
+    call MPI_Bcast(n, 1, MPI_INTEGER, 0, io%comm)
+    allocate (character(len=n) :: v)
+    if (io%rank == 0) v = value
+    call MPI_Bcast(v, n, MPI_CHARACTER, 0, io%comm)
+    call set_attribute(io, path, name, s=v)
+  end subroutine write_attribute_text
 
   !> Flush and close the file; the last file closed also closes the HDF5 library.
   subroutine io_close(io)
@@ -369,8 +377,7 @@ contains
     io%is_open = .false.
     io%file_id = -1
     io%dxpl = -1
-    io%nframes = 0
-    if (allocated(io%frames)) deallocate (io%frames)
+    call xdmf_free(io%xdmf)
   end subroutine io_close
 
   !> Whether a file exists at `path` (local to the calling rank).
@@ -391,123 +398,139 @@ contains
     gname = '/fields/'//trim(digits)
   end function field_group
 
-  subroutine add_frame(io, step, t, offset, names)
-    type(io_t), intent(inout) :: io
-    integer, intent(in) :: step
-    real(wp), intent(in) :: t, offset
-    character(len=*), intent(in) :: names(:)
-    type(frame_t), allocatable :: grown(:)
-    integer :: k
-
-    if (io%nframes == size(io%frames)) then
-      allocate (grown(2*size(io%frames)))
-      grown(1:io%nframes) = io%frames(1:io%nframes)
-      call move_alloc(grown, io%frames)
-    end if
-    io%nframes = io%nframes + 1
-    associate (f => io%frames(io%nframes))
-      f%step = step
-      f%t = t
-      f%offset = offset
-      allocate (character(len=max(1, maxval(len_trim(names)))) :: f%fields(size(names)))
-      do k = 1, size(names)
-        f%fields(k) = trim(names(k))
-      end do
-    end associate
-  end subroutine add_frame
-
-  !> Rewrite the XDMF sidecar (rank 0) with every snapshot so far: a temporal collection of
-  !! 2DCoRectMesh grids on the cell-centred nodes ((i - 1/2) dx, (j - 1/2) dx + offset). XDMF
-  !! lists dimensions, origin and spacing slowest index first, i.e. (y, x). Written to a
-  !! temporary name and renamed, so a reader never sees a half-written file.
-  subroutine write_xdmf(io)
+  !> Append one sample to each extendible dataset /<group>/<names(k)>, created (chunked: only
+  !! chunked datasets can grow) on first use. Samples run along the last HDF5 dimension, so h5py
+  !! sees (n_samples,) for a series (`ndims` = 1, values(1, k) the new value) and (n_samples,
+  !! ncols) for a table (`ndims` = 2, values(:, k) the new row). Rank 0 writes the sample; the
+  !! other ranks join the collective writes with nothing selected.
+  subroutine append_sample(io, group, names, values, ndims, caller)
     type(io_t), intent(in) :: io
-    character(len=:), allocatable :: xml, dims, tmp, prec
-    character(len=512) :: msg
-    character(len=1), parameter :: nl = new_line('a')
-    integer :: u, ios, n, k
+    character(len=*), intent(in) :: group, names(:)
+    real(wp), intent(in) :: values(:, :) !! (ncols, size(names)); ncols = 1 for a series
+    integer, intent(in) :: ndims         !! 1 series, 2 table
+    character(len=*), intent(in) :: caller
+    integer(hid_t) :: grp, dcpl, fspace, dset
+    integer(hsize_t) :: ncols, dims(2), maxdims(2), chunk(2), start(2), count(2)
+    integer :: hdferr, k, lo, stored
+    logical :: exists
+    character(len=:), allocatable :: what
+    character(len=80) :: msg
 
-    dims = itoa(io%ny)//' '//itoa(io%nx)
-    prec = itoa(storage_size(1.0_wp)/8)
-    xml = '<?xml version="1.0" ?>'//nl//'<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>'//nl// &
-          '<Xdmf Version="3.0">'//nl//'  <Domain>'//nl// &
-          '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">'//nl
-    do n = 1, io%nframes
-      associate (f => io%frames(n))
-        xml = xml//'      <Grid Name="step '//itoa(f%step)//'" GridType="Uniform">'//nl// &
-              '        <Time Value="'//rtoa(f%t)//'"/>'//nl// &
-              '        <Topology TopologyType="2DCoRectMesh" Dimensions="'//dims//'"/>'//nl// &
-              '        <Geometry GeometryType="ORIGIN_DXDY">'//nl// &
-              '          <DataItem Name="Origin" Dimensions="2" NumberType="Float" '// &
-              'Precision="'//prec//'" Format="XML">'//rtoa(0.5_wp*io%dx + f%offset)//' '// &
-              rtoa(0.5_wp*io%dx)//'</DataItem>'//nl// &
-              '          <DataItem Name="Spacing" Dimensions="2" NumberType="Float" '// &
-              'Precision="'//prec//'" Format="XML">'//rtoa(io%dx)//' '//rtoa(io%dx)// &
-              '</DataItem>'//nl//'        </Geometry>'//nl
-        do k = 1, size(f%fields)
-          xml = xml//'        <Attribute Name="'//xml_escape(trim(f%fields(k)))// &
-                '" AttributeType="Scalar" Center="Node">'//nl// &
-                '          <DataItem Dimensions="'//dims//'" NumberType="Float" Precision="'// &
-                prec//'" Format="HDF">'//xml_escape(io%name//'.h5:'//field_group(f%step)// &
-                                                    '/'//trim(f%fields(k)))//'</DataItem>'//nl// &
-                '        </Attribute>'//nl
-        end do
-        xml = xml//'      </Grid>'//nl
-      end associate
+    ! A series uses the last entry of the (column, sample) arrays only.
+    lo = 3 - ndims
+    ncols = size(values, 1, kind=hsize_t)
+    grp = open_object(io, group)
+    do k = 1, size(names)
+      what = trim(group)//'/'//trim(names(k))
+      call h5lexists_f(grp, trim(names(k)), exists, hdferr)
+      call check(hdferr, 'h5lexists_f('//what//')', io%path)
+      if (exists) then
+        call h5dopen_f(grp, trim(names(k)), dset, hdferr)
+        call check(hdferr, 'h5dopen_f('//what//')', io%path)
+      else
+        dims = [ncols, 0_hsize_t]
+        maxdims = [ncols, H5S_UNLIMITED_F]
+        ! Whole rows, about 1024 values (8 KiB) a chunk.
+        chunk = [ncols, max(1_hsize_t, 1024_hsize_t/ncols)]
+        call h5screate_simple_f(ndims, dims(lo:), fspace, hdferr, maxdims=maxdims(lo:))
+        call check(hdferr, 'h5screate_simple_f', io%path)
+        call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+        call check(hdferr, 'h5pcreate_f(dataset create)', io%path)
+        call h5pset_chunk_f(dcpl, ndims, chunk(lo:), hdferr)
+        call check(hdferr, 'h5pset_chunk_f', io%path)
+        call h5dcreate_f(grp, trim(names(k)), io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
+        call check(hdferr, 'h5dcreate_f('//what//')', io%path)
+        call h5pclose_f(dcpl, hdferr)
+        call check(hdferr, 'h5pclose_f', io%path)
+        call h5sclose_f(fspace, hdferr)
+        call check(hdferr, 'h5sclose_f', io%path)
+      end if
+      call h5dget_space_f(dset, fspace, hdferr)
+      call check(hdferr, 'h5dget_space_f('//what//')', io%path)
+      call h5sget_simple_extent_ndims_f(fspace, stored, hdferr)
+      call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
+      if (stored /= ndims) then
+        write (msg, '(a,i0,a)') ' has ', stored, ' dimensions; write it with '// &
+          trim(merge('io_write_series', 'io_write_table ', stored == 1))
+        call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
+      end if
+      call h5sget_simple_extent_dims_f(fspace, dims(lo:), maxdims(lo:), hdferr)
+      call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
+      call h5sclose_f(fspace, hdferr)
+      call check(hdferr, 'h5sclose_f', io%path)
+      if (ndims == 2 .and. dims(1) /= ncols) then
+        write (msg, '(a,i0,a,i0)') ' has ', dims(1), ' columns; the new row has ', ncols
+        call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
+      end if
+      dims(2) = dims(2) + 1
+      call h5dset_extent_f(dset, dims(lo:), hdferr)
+      call check(hdferr, 'h5dset_extent_f('//what//')', io%path)
+      start = [0_hsize_t, dims(2) - 1]
+      count = merge([ncols, 1_hsize_t], [0_hsize_t, 0_hsize_t], io%rank == 0)
+      call write_block(io, dset, start(lo:), count(lo:), values(:, k), what)
+      call h5dclose_f(dset, hdferr)
+      call check(hdferr, 'h5dclose_f('//what//')', io%path)
     end do
-    xml = xml//'    </Grid>'//nl//'  </Domain>'//nl//'</Xdmf>'
+    call h5oclose_f(grp, hdferr)
+    call check(hdferr, 'h5oclose_f('//trim(group)//')', io%path)
+  end subroutine append_sample
 
-    tmp = io%xdmf_path//'.tmp'
-    open (newunit=u, file=tmp, status='replace', action='write', form='formatted', &
-          iostat=ios, iomsg=msg)
-    if (ios == 0) write (u, '(a)', iostat=ios, iomsg=msg) xml
-    if (ios == 0) close (u, iostat=ios, iomsg=msg)
-    if (ios /= 0) call fatal_local('cannot write '''//tmp//''': '//trim(msg))
-    if (c_rename(tmp//c_null_char, io%xdmf_path//c_null_char) /= 0) &
-      call fatal_local('cannot rename '''//tmp//''' to '''//io%xdmf_path//'''')
-  end subroutine write_xdmf
-
-  subroutine delete_file(path)
+  !> Open the group or dataset at `path` ('a/b' or '/a/b'; '' or '/' is the root group),
+  !! creating each missing component as a group. The caller closes it with h5oclose_f.
+  function open_object(io, path) result(obj)
+    type(io_t), intent(in) :: io
     character(len=*), intent(in) :: path
-    integer :: u, ios
-    if (.not. io_file_exists(path)) return
-    open (newunit=u, file=path, status='old', iostat=ios)
-    if (ios == 0) close (u, status='delete', iostat=ios)
-    if (ios /= 0) call fatal_local('cannot remove the stale file '''//path//'''')
-  end subroutine delete_file
+    integer(hid_t) :: obj, parent
+    integer :: hdferr, first, last
+    logical :: exists
 
-  pure function xml_escape(s) result(r)
-    character(len=*), intent(in) :: s
-    character(len=:), allocatable :: r
-    integer :: i
-    r = ''
-    do i = 1, len(s)
-      select case (s(i:i))
-      case ('&'); r = r//'&amp;'
-      case ('<'); r = r//'&lt;'
-      case ('>'); r = r//'&gt;'
-      case ('"'); r = r//'&quot;'
-      case default; r = r//s(i:i)
-      end select
+    call h5oopen_f(io%file_id, '/', obj, hdferr)
+    call check(hdferr, 'h5oopen_f(/)', io%path)
+    first = 1
+    do while (first <= len_trim(path))
+      last = first + index(path(first:len_trim(path))//'/', '/') - 2 ! component first..last
+      if (last >= first) then
+        parent = obj
+        call h5lexists_f(parent, path(first:last), exists, hdferr)
+        call check(hdferr, 'h5lexists_f('//path(:last)//')', io%path)
+        if (exists) then
+          call h5oopen_f(parent, path(first:last), obj, hdferr)
+        else
+          call h5gcreate_f(parent, path(first:last), obj, hdferr)
+        end if
+        call check(hdferr, 'h5oopen_f/h5gcreate_f('//path(:last)//')', io%path)
+        call h5oclose_f(parent, hdferr)
+        call check(hdferr, 'h5oclose_f', io%path)
+      end if
+      first = last + 2
     end do
-  end function xml_escape
+  end function open_object
 
-  pure function itoa(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function itoa
+  !> Write attribute `name` (one of r, i, s present) of the object at `path`, created as a group
+  !! if missing, replacing an attribute of that name.
+  subroutine set_attribute(io, path, name, r, i, s)
+    type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: path, name
+    real(wp), intent(in), optional :: r
+    integer, intent(in), optional :: i
+    character(len=*), intent(in), optional :: s
+    integer(hid_t) :: obj
+    integer :: hdferr
+    logical :: exists
 
-  !> Shortest-safe text of a real: 17 significant digits read back to the same value.
-  pure function rtoa(x) result(s)
-    real(wp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write (buf, '(es24.16e3)') x
-    s = trim(adjustl(buf))
-  end function rtoa
+    if (len_trim(name) == 0) call fatal_local('io_write_attribute: empty attribute name for '''// &
+                                              trim(path)//'''')
+    obj = open_object(io, path)
+    call h5aexists_f(obj, trim(name), exists, hdferr)
+    call check(hdferr, 'h5aexists_f('//trim(path)//' '//trim(name)//')', io%path)
+    if (exists) then
+      call h5adelete_f(obj, trim(name), hdferr)
+      call check(hdferr, 'h5adelete_f('//trim(path)//' '//trim(name)//')', io%path)
+    end if
+    call put_attr(io, obj, trim(name), r, i, s)
+    call h5oclose_f(obj, hdferr)
+    call check(hdferr, 'h5oclose_f('//trim(path)//')', io%path)
+  end subroutine set_attribute
 
   subroutine require_open(io, caller)
     type(io_t), intent(in) :: io
@@ -523,80 +546,49 @@ contains
                                      '''; is the disk full or the file system read-only?')
   end subroutine check
 
-  subroutine put_string_attr(loc, name, value, path)
+  !> Write the new scalar attribute `name` of object `loc`: a real(wp) r, an integer i or a string
+  !! s, whichever is present (one is). A string is fixed-length and null-padded, an empty one
+  !! stored as a single NUL (h5py: b'').
+  subroutine put_attr(io, loc, name, r, i, s)
+    type(io_t), intent(in) :: io
     integer(hid_t), intent(in) :: loc
-    character(len=*), intent(in) :: name, value, path
-    integer(hid_t) :: stype, attr
-    integer :: hdferr
+    character(len=*), intent(in) :: name
+    real(wp), intent(in), optional :: r
+    integer, intent(in), optional :: i
+    character(len=*), intent(in), optional :: s
+    integer(hid_t) :: atype, space, attr
+    integer :: hdferr, e(3)
 
-    ! A fixed-length, null-padded string; an empty one is stored as a single NUL (h5py: b'').
-    call h5tcopy_f(H5T_NATIVE_CHARACTER, stype, hdferr)
-    call check(hdferr, 'h5tcopy_f', path)
-    call h5tset_size_f(stype, int(max(1, len(value)), size_t), hdferr)
-    call check(hdferr, 'h5tset_size_f', path)
-    call h5tset_strpad_f(stype, H5T_STR_NULLPAD_F, hdferr)
-    call check(hdferr, 'h5tset_strpad_f', path)
-    attr = new_attr(loc, name, stype, path)
-    if (len(value) > 0) then
-      call h5awrite_f(attr, stype, value, one, hdferr)
+    if (present(r)) then
+      atype = io%real_type
+    else if (present(i)) then
+      atype = io%int_type
     else
-      call h5awrite_f(attr, stype, c_null_char, one, hdferr)
+      call h5tcopy_f(H5T_NATIVE_CHARACTER, atype, e(1))
+      call h5tset_size_f(atype, int(max(1, len(s)), size_t), e(2))
+      call h5tset_strpad_f(atype, H5T_STR_NULLPAD_F, e(3))
+      call check(minval(e), 'h5tcopy_f/h5tset_size_f/h5tset_strpad_f('//name//')', io%path)
     end if
-    call end_attr(attr, hdferr, name, path)
-    call h5tclose_f(stype, hdferr)
-    call check(hdferr, 'h5tclose_f', path)
-  end subroutine put_string_attr
-
-  subroutine put_real_attr(loc, name, value, rtype, path)
-    integer(hid_t), intent(in) :: loc, rtype
-    character(len=*), intent(in) :: name, path
-    real(wp), intent(in) :: value
-    integer(hid_t) :: attr
-    integer :: hdferr
-
-    attr = new_attr(loc, name, rtype, path)
-    call h5awrite_f(attr, rtype, value, one, hdferr)
-    call end_attr(attr, hdferr, name, path)
-  end subroutine put_real_attr
-
-  subroutine put_int_attr(loc, name, value, itype, path)
-    integer(hid_t), intent(in) :: loc, itype
-    character(len=*), intent(in) :: name, path
-    integer, intent(in) :: value
-    integer(hid_t) :: attr
-    integer :: hdferr
-
-    attr = new_attr(loc, name, itype, path)
-    call h5awrite_f(attr, itype, value, one, hdferr)
-    call end_attr(attr, hdferr, name, path)
-  end subroutine put_int_attr
-
-  !> A new scalar attribute `name` of type `atype` on object `loc`.
-  function new_attr(loc, name, atype, path) result(attr)
-    integer(hid_t), intent(in) :: loc, atype
-    character(len=*), intent(in) :: name, path
-    integer(hid_t) :: attr, space
-    integer :: hdferr
-
     call h5screate_f(H5S_SCALAR_F, space, hdferr)
-    call check(hdferr, 'h5screate_f', path)
+    call check(hdferr, 'h5screate_f', io%path)
     call h5acreate_f(loc, name, atype, space, attr, hdferr)
-    call check(hdferr, 'h5acreate_f('//name//')', path)
-    call h5sclose_f(space, hdferr)
-    call check(hdferr, 'h5sclose_f', path)
-  end function new_attr
-
-  !> Check the write of attribute `name` (return code `werr`) and close it.
-  subroutine end_attr(attr, werr, name, path)
-    integer(hid_t), intent(in) :: attr
-    integer, intent(in) :: werr
-    character(len=*), intent(in) :: name, path
-    integer :: hdferr
-
-    call check(werr, 'h5awrite_f('//name//')', path)
-    call h5aclose_f(attr, hdferr)
-    call check(hdferr, 'h5aclose_f('//name//')', path)
-  end subroutine end_attr
+    call check(hdferr, 'h5acreate_f('//name//')', io%path)
+    if (present(r)) then
+      call h5awrite_f(attr, atype, r, one, hdferr)
+    else if (present(i)) then
+      call h5awrite_f(attr, atype, i, one, hdferr)
+    else if (len(s) > 0) then
+      call h5awrite_f(attr, atype, s, one, hdferr)
+    else
+      call h5awrite_f(attr, atype, c_null_char, one, hdferr)
+    end if
+    call check(hdferr, 'h5awrite_f('//name//')', io%path)
+    call h5aclose_f(attr, e(1))
+    call h5sclose_f(space, e(2))
+    e(3) = 0
+    if (.not. (present(r) .or. present(i))) call h5tclose_f(atype, e(3))
+    call check(minval(e), 'h5aclose_f/h5sclose_f/h5tclose_f('//name//')', io%path)
+  end subroutine put_attr
 
   !> Collective write of this rank's block (start, count) of dataset `dset` from `buf`, which
   !! holds product(count) values, first index fastest. An empty block takes part in the

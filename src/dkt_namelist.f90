@@ -15,7 +15,7 @@ module dkt_namelist
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
                           KEY_CHOICE, find_key, has_group, unknown_group_hint, unknown_key_hint, &
-                          allowed_text, lower_case, quoted, itoa
+                          allowed_text, text_length, lower_case, quoted, itoa
   implicit none
   private
   public :: parse_namelist, apply_override
@@ -149,8 +149,9 @@ contains
   end function starts_item
 
   !> Apply one override `group.key=value` or `group.key(i)=value` (the --set option). A string
-  !! or choice takes the whole text after '=' (quotes optional); other values are split at
-  !! commas and blanks. `file` is the namelist the override follows, for the message.
+  !! or choice takes the whole text after '=' (quotes optional); other values, and the values
+  !! of an array of choices, are split at commas and blanks (each choice's quotes optional).
+  !! `file` is the namelist the override follows, for the message.
   subroutine apply_override(reg, spec, file, err)
     type(registry_t), intent(inout) :: reg
     character(len=*), intent(in) :: spec, file
@@ -184,12 +185,14 @@ contains
       idx = find_key(reg, g, name)
     end if
     if (idx > 0) then
-      if (reg%keys(idx)%kind == KEY_STRING .or. reg%keys(idx)%kind == KEY_CHOICE) then
-        q = len(rhs)
-        if (q >= 2) then
-          if ((rhs(1:1) == '''' .or. rhs(1:1) == '"') .and. rhs(q:q) == rhs(1:1)) &
-            rhs = rhs(2:q - 1)
-        end if
+      if (reg%keys(idx)%kind == KEY_CHOICE .and. reg%keys(idx)%n > 0) then
+        call split_words(rhs, vals)
+        do q = 1, size(vals)
+          vals(q)%kind = TOK_STRING
+          vals(q)%text = unquoted(vals(q)%text)
+        end do
+      else if (reg%keys(idx)%kind == KEY_STRING .or. reg%keys(idx)%kind == KEY_CHOICE) then
+        rhs = unquoted(rhs) ! not inside token_t(...): gfortran 12 fails on that (ICE)
         vals = [token_t(TOK_STRING, 0, rhs)]
       else
         call split_words(rhs, vals)
@@ -199,6 +202,19 @@ contains
     end if
     call assign(reg, g, name, vals, loc, err)
   end subroutine apply_override
+
+  !> `text` without the quotes around it, if it is quoted with ' or ".
+  function unquoted(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    integer :: q
+    s = text
+    q = len(text)
+    if (q >= 2) then
+      if ((text(1:1) == '''' .or. text(1:1) == '"') .and. text(q:q) == text(1:1)) &
+        s = text(2:q - 1)
+    end if
+  end function unquoted
 
   subroutine split_words(text, vals)
     character(len=*), intent(in) :: text
@@ -309,9 +325,11 @@ contains
         end select
         if (vals(j)%kind == TOK_STRING) err = loc//': '//item//' is not a logical'
       case (KEY_STRING, KEY_CHOICE)
-        if (len(vals(j)%text) > len(k%s)) then
+        if (len(vals(j)%text) > text_length(k)) then
           err = loc//': '//item//' is too long: '//itoa(len(vals(j)%text))// &
-                ' characters, at most '//itoa(len(k%s))
+                ' characters, at most '//itoa(text_length(k))
+        else if (k%n > 0) then ! an array of choices
+          k%sa(first + j - 1)%s = lower_case(vals(j)%text)
         else if (k%kind == KEY_CHOICE) then
           k%s = lower_case(vals(j)%text) ! membership is checked with the ranges (check_key)
         else

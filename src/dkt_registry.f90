@@ -13,13 +13,19 @@ module dkt_registry
   private
   public :: key_t, registry_t
   public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
-  public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice
+  public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice, add_choices
   public :: find_key, has_group, origin_of, unknown_group_hint, unknown_key_hint, check_key
-  public :: value_text, allowed_text, type_name, fmt_real
+  public :: value_text, allowed_text, type_name, text_length, fmt_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
                         KEY_CHOICE = 5
+
+  !> One text value of an array of choices. Each element gets its own pointer because
+  !! gfortran 12 loses the length of a deferred-length character array pointer (len = 0).
+  type :: text_ref_t
+    character(len=:), pointer :: s => null()
+  end type text_ref_t
 
   !> One input key: where its value lives, what it accepts and what it means.
   type :: key_t
@@ -27,6 +33,7 @@ module dkt_registry
     character(len=:), allocatable :: name    !! key name, lower case
     integer :: kind = 0                      !! KEY_REAL .. KEY_CHOICE
     integer :: n = 0                         !! number of elements of an array key; 0 = scalar
+                                             !! (arrays: KEY_REAL and KEY_CHOICE)
     character(len=:), allocatable :: unit    !! physical unit; '-' for a pure number
     character(len=:), allocatable :: meaning !! one line, no '|' (it goes into markdown tables)
     character(len=:), allocatable :: choices !! allowed values of a choice, blank-separated
@@ -39,6 +46,7 @@ module dkt_registry
     integer, pointer :: i => null()
     logical, pointer :: l => null()
     character(len=:), pointer :: s => null()
+    type(text_ref_t), allocatable :: sa(:)   !! the elements of an array of choices
   end type key_t
 
   !> The keys of a configuration, in the order they are documented and printed.
@@ -131,6 +139,24 @@ contains
     reg%keys(size(reg%keys))%s => x
     reg%keys(size(reg%keys))%choices = trim(adjustl(choices))
   end subroutine add_choice
+
+  !> Register an array key bound to `x` whose every element is one of `choices`
+  !! (documented as name(size(x))).
+  subroutine add_choices(reg, group, name, x, choices, meaning)
+    type(registry_t), intent(inout) :: reg
+    character(len=*), intent(in) :: group, name, choices, meaning
+    character(len=*), intent(inout), target :: x(:)
+    integer :: j
+    call add_key(reg, group, name, KEY_CHOICE, '-', meaning)
+    associate (k => reg%keys(size(reg%keys)))
+      allocate (k%sa(size(x)))
+      do j = 1, size(x)
+        k%sa(j)%s => x(j)
+      end do
+      k%n = size(x)
+      k%choices = trim(adjustl(choices))
+    end associate
+  end subroutine add_choices
 
   subroutine set_range(k, gt, ge, lt, le, zero_ok)
     type(key_t), intent(inout) :: k
@@ -239,11 +265,23 @@ contains
       if (.not. in_range(k, real(k%i, wp))) &
         err = src//': &'//k%group//' '//k%name//' = '//itoa(k%i)//' is out of range'//tail
     case (KEY_CHOICE)
-      if (word_index(k%choices, trim(k%s)) == 0) &
-        err = src//': &'//k%group//' '//k%name//' = '''//trim(k%s)//''' is not one of '// &
-              join(k%choices, '''', '''')//suggest(trim(k%s), k%choices, '''', '''')//' ('// &
-              k%meaning//')'
+      if (k%n == 0) then
+        call check_choice(k%name, k%s)
+      else
+        do j = 1, k%n
+          call check_choice(k%name//'('//itoa(j)//')', k%sa(j)%s)
+          if (len(err) > 0) return
+        end do
+      end if
     end select
+  contains
+    subroutine check_choice(elem, x)
+      character(len=*), intent(in) :: elem, x
+      if (word_index(k%choices, trim(x)) == 0) &
+        err = src//': &'//k%group//' '//elem//' = '''//trim(x)//''' is not one of '// &
+              join(k%choices, '''', '''')//suggest(trim(x), k%choices, '''', '''')//' ('// &
+              k%meaning//')'
+    end subroutine check_choice
   end subroutine check_key
 
   pure logical function in_range(k, x)
@@ -278,9 +316,26 @@ contains
       s = merge('.true. ', '.false.', k%l)
       s = trim(s)
     case default
-      s = quoted(trim(k%s))
+      if (k%n == 0) then
+        s = quoted(trim(k%s))
+      else
+        s = quoted(trim(k%sa(1)%s))
+        do j = 2, k%n
+          s = s//', '//quoted(trim(k%sa(j)%s))
+        end do
+      end if
     end select
   end function value_text
+
+  !> The most characters a string or choice key (or each element of an array of choices) holds.
+  pure integer function text_length(k)
+    type(key_t), intent(in) :: k
+    if (k%n > 0) then
+      text_length = len(k%sa(1)%s)
+    else
+      text_length = len(k%s)
+    end if
+  end function text_length
 
   !> What the key accepts, e.g. '0.5 < tau <= 10', 'one of ''mrt'', ''bgk'''.
   function allowed_text(k) result(s)
@@ -307,7 +362,7 @@ contains
     case (KEY_CHOICE)
       s = 'one of '//join(k%choices, '''', '''')
     case default
-      s = 'text of at most '//itoa(len(k%s))//' characters'
+      s = 'text of at most '//itoa(text_length(k))//' characters'
     end select
   end function allowed_text
 

@@ -14,8 +14,13 @@ module dkt_simulation
   use dkt_boundary, only: boundary_t, boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
   use dkt_fields, only: macroscopic, vorticity
+  use dkt_particles, only: particles_t, particles_init, particles_find_links, particles_bounce, &
+                           particles_interior, particles_reduce_forces, particles_move, &
+                           particles_solid_field, MOTION_FREE, MOTION_FIXED, &
+                           MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_diagnostics, only: guard_check
-  use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close
+  use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
+                    io_write_table, io_write_attribute
   use dkt_log, only: log_line, log_open, log_close
   use dkt_filesystem, only: make_directories
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
@@ -24,8 +29,12 @@ module dkt_simulation
   public :: simulation_t, simulation_setup, simulation_summary, simulation_open_output, &
             simulation_run, simulation_finish
 
-  character(len=*), parameter :: field_names(5) = &
-                                 [character(len=9) :: 'rho', 'ux', 'uy', 'vorticity', 'pressure']
+  !> output fields; the particle index field only in a scene with particles
+  character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
+                                                   'vorticity', 'pressure ', 'particle ']
+  !> the /particles series besides t, one column per particle
+  character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
+                                                    'omega ', 'fx    ', 'fy    ', 'torque']
 
   type :: simulation_t
     type(config_t) :: cfg
@@ -35,6 +44,9 @@ module dkt_simulation
     type(collision_t) :: coll
     real(wp), pointer, contiguous :: f(:, :, :) => null()      !! post-collision f*(t)
     real(wp), pointer, contiguous :: f_next(:, :, :) => null() !! f*(t + dt), written by the sweep
+    type(particles_t) :: parts      !! allocated only when the scene has particles
+    logical :: particles_on = .false.
+    logical :: particles_move = .false. !! some particle is free or prescribed
     type(io_t) :: io
     logical :: output_open = .false.
     integer :: step = 0
@@ -61,12 +73,20 @@ contains
     type(MPI_Comm), intent(in) :: comm
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
+    integer :: min_rows
 
     sim%cfg = cfg
     sim%lp = lp
     periodic_x = cfg%domain%sides == 'periodic'
     periodic_y = cfg%domain%lower == 'periodic'
-    call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, MIN_SLAB_ROWS, err)
+    sim%particles_on = lp%particles_on
+    min_rows = MIN_SLAB_ROWS
+    if (sim%particles_on) then
+      ! a slab holds at least the largest particle plus its interpolation stencil
+      min_rows = max(min_rows, ceiling(maxval(cfg%particles%diameter(1:cfg%particles%count)) &
+                                       /lp%dx) + 4)
+    end if
+    call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
     call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
                        end_kind(cfg%domain%upper), lp%u_in_lb, cfg%inlet%profile == 'parabolic', &
@@ -75,7 +95,47 @@ contains
     allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     call initialise(sim)
+    if (sim%particles_on) call setup_particles(sim)
   end subroutine simulation_setup
+
+  !> The particles of the scene in lattice units (SPEC §3–4), their first boundary links and
+  !! the fluid inside them set to their velocity.
+  subroutine setup_particles(sim)
+    type(simulation_t), intent(inout) :: sim
+    integer :: n, k
+    integer, allocatable :: motion(:)
+    real(wp) :: dx, dt, rho_f
+    integer :: scheme
+    n = sim%cfg%particles%count
+    dx = sim%lp%dx
+    dt = sim%lp%dt
+    rho_f = sim%cfg%fluid%density
+    allocate (motion(n))
+    do k = 1, n
+      select case (trim(sim%cfg%particles%motion(k)))
+      case ('fixed'); motion(k) = MOTION_FIXED
+      case ('prescribed'); motion(k) = MOTION_PRESCRIBED
+      case default; motion(k) = MOTION_FREE
+      end select
+    end do
+    select case (trim(sim%cfg%coupling%bounce_back))
+    case ('halfway'); scheme = BB_HALFWAY
+    case ('bfl'); scheme = BB_BFL
+    case default; scheme = BB_YU
+    end select
+    associate (p => sim%cfg%particles, c => sim%cfg%collision)
+      ! E10 stiffnesses: eps_p in cm^2 s^2/(g/cm) and eps'_p in cm s^2/(g/cm) per unit depth
+      call particles_init(sim%parts, sim%dom, p%x(1:n)/dx, p%y(1:n)/dx, 0.5_wp*p%diameter(1:n)/dx, &
+                          p%u(1:n)*dt/dx, p%v(1:n)*dt/dx, p%omega(1:n)*dt, &
+                          p%density(1:n)/rho_f, motion, scheme, &
+                          sim%cfg%coupling%momentum == 'galilean', p%gravity*dt*dt/dx, &
+                          c%stiffness*rho_f/dt**2, c%stiffness_overlap*rho_f*dx/dt**2, c%range, &
+                          c%substeps)
+    end associate
+    sim%particles_move = any(motion /= MOTION_FIXED)
+    call particles_find_links(sim%parts, sim%dom)
+    call particles_interior(sim%parts, sim%dom, sim%f)
+  end subroutine setup_particles
 
   !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
   subroutine initialise(sim)
@@ -115,7 +175,7 @@ contains
   !! starts (and by --check instead of running).
   subroutine simulation_summary(sim)
     type(simulation_t), intent(in) :: sim
-    character(len=256) :: line
+    character(len=256) :: line, particles
     real(wp) :: s(0:8), lattice_mib, output_mib
     integer :: k
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
@@ -142,8 +202,15 @@ contains
       call log_line(trim(line))
       lattice_mib = 2.0_wp*9.0_wp*real(dom%nxp, wp)*real(dom%nyl + 2, wp)*8.0_wp/2.0_wp**20
       output_mib = 6.0_wp*real(dom%nx, wp)*real(dom%nyl, wp)*8.0_wp/2.0_wp**20
+      if (sim%particles_on) then
+        write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
+          ' boundary links on rank 0)'
+      else
+        particles = 'particles: none'
+      end if
       write (line, '(a,f10.2,a,f8.2,a)') 'memory per rank: lattices ', lattice_mib, &
-        ' MiB, output buffers ', output_mib, ' MiB while writing; particles: none; window: none'
+        ' MiB, output buffers ', output_mib, ' MiB while writing; '//trim(particles)// &
+        '; window: none'
       call log_line(trim(line))
       line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
@@ -152,7 +219,13 @@ contains
       if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
         line = trim(line)//', inlet '//trim(cfg%inlet%profile)
       if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
-      call log_line(trim(line)//'; particles off; window off')
+      if (sim%particles_on) then
+        line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
+               ', E7 '//trim(cfg%coupling%momentum)//', E8-E11)'
+      else
+        line = trim(line)//'; particles off'
+      end if
+      call log_line(trim(line)//'; window off')
       k = lp%field_every
       if (k > 0) then
         write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
@@ -210,20 +283,25 @@ contains
     nxp = sim%dom%nxp
     associate (lp => sim%lp, cfg => sim%cfg)
       if (lp%field_every > 0) call write_fields(sim, 0)
+      if (sim%particles_on) call write_particles(sim, 0)
       t_start = MPI_Wtime()
       t_last = t_start
       last_progress = 0
       do n = 1, lp%steps
-        ! E1-E5: exchange the crossing populations while the rows that do not need them are
-        ! swept, then the two rows next to the slab faces
-        call halo_start(sim%dom, sim%f)
-        call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
-        call halo_finish(sim%dom, sim%f)
-        call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-        call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
-        call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+        if (sim%particles_on) then
+          call particle_step(sim, n)
+        else
+          ! E1-E5: exchange the crossing populations while the rows that do not need them are
+          ! swept, then the two rows next to the slab faces
+          call halo_start(sim%dom, sim%f)
+          call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+          call halo_finish(sim%dom, sim%f)
+          call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+          call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+        end if
         tmp => sim%f
         sim%f => sim%f_next
         sim%f_next => tmp
@@ -234,6 +312,9 @@ contains
           call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
         if (lp%field_every > 0) then
           if (mod(n, lp%field_every) == 0 .and. n /= lp%steps) call write_fields(sim, n)
+        end if
+        if (sim%particles_on .and. lp%series_every > 0) then
+          if (mod(n, lp%series_every) == 0 .and. n /= lp%steps) call write_particles(sim, n)
         end if
         if (cfg%run%progress_every > 0) then
           if (mod(n, cfg%run%progress_every) == 0 .and. n /= lp%steps) then
@@ -250,6 +331,7 @@ contains
         ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', lp%steps, ' steps in ', t, ' s on ', &
         sim%dom%nranks, ' ranks)'
       call write_fields(sim, lp%steps)
+      if (sim%particles_on) call write_particles(sim, lp%steps)
       call log_line(trim(line))
     end associate
   contains
@@ -276,6 +358,53 @@ contains
     end subroutine progress
   end subroutine simulation_run
 
+  !> One step with particles: the halo is completed before the sweep because a boundary link
+  !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
+  !! are set, the lattice swept, forces summed (E7) and the particles moved (E8–E11).
+  subroutine particle_step(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    call halo_start(sim%dom, sim%f)
+    call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+    call halo_finish(sim%dom, sim%f)
+    call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+    call particles_bounce(sim%parts, sim%dom, sim%f)
+    call stream_collide(sim%coll, sim%f, sim%f_next, sim%dom%nxp, sim%dom%nx, sim%dom%nyl, 1, &
+                        sim%dom%nyl)
+    call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+    call particles_interior(sim%parts, sim%dom, sim%f_next)
+    call particles_reduce_forces(sim%parts, sim%dom)
+    if (sim%particles_move) then
+      call particles_move(sim%parts, sim%dom, sim%f_next, &
+                          sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
+      call particles_find_links(sim%parts, sim%dom)
+    end if
+  end subroutine particle_step
+
+  !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
+  !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
+  !! of the step that reached time t.
+  subroutine write_particles(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), allocatable :: v(:, :)
+    real(wp) :: dx, dt, fu
+    integer :: k
+    dx = sim%lp%dx
+    dt = sim%lp%dt
+    fu = sim%cfg%fluid%density*dx**3/dt**2
+    allocate (v(sim%parts%n, 8))
+    do k = 1, sim%parts%n
+      associate (p => sim%parts%p(k))
+        v(k, :) = [(p%x - 0.0_wp)*dx, p%y*dx, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
+                   p%fy*fu, p%torque*fu*dx]
+      end associate
+    end do
+    if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
+    call io_write_series(sim%io, 'particles', ['t'], [n*dt])
+    call io_write_table(sim%io, 'particles', series_names, v)
+  end subroutine write_particles
+
   !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
   !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
   subroutine write_fields(sim, n)
@@ -284,7 +413,7 @@ contains
     real(wp), allocatable :: fld(:, :, :)
     real(wp) :: uc
     associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
-      allocate (fld(nx, nyl, 5))
+      allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
       call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
       call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
       uc = lp%dx/lp%dt
@@ -292,7 +421,12 @@ contains
       fld(:, :, 1) = fld(:, :, 1)*sim%cfg%fluid%density
       fld(:, :, 2:3) = fld(:, :, 2:3)*uc
       fld(:, :, 4) = fld(:, :, 4)/lp%dt
-      call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names, fld)
+      if (sim%particles_on) then
+        call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
+        call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names, fld)
+      else
+        call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names(1:5), fld)
+      end if
     end associate
   end subroutine write_fields
 

@@ -4,7 +4,7 @@ program dktlbm
   use iso_fortran_env, only: output_unit
   use mpi_f08, only: MPI_Init, MPI_Finalize, MPI_COMM_WORLD, MPI_Comm_rank, MPI_Bcast, &
                      MPI_INTEGER, MPI_CHARACTER
-  use dkt_errors, only: fatal_all
+  use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, derive_lattice, config_to_namelist, print_help
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
@@ -16,7 +16,7 @@ program dktlbm
   type(config_t) :: cfg
   type(lattice_params_t) :: lp
   type(simulation_t) :: sim
-  character(len=:), allocatable :: err, text
+  character(len=:), allocatable :: err, text, warnings
   integer :: rank
 
   call MPI_Init()
@@ -31,10 +31,11 @@ program dktlbm
   end if
 
   call read_input(cli%nml_file, text)
-  call config_load(cfg, text, cli%nml_file, cli%overrides, err)
+  call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings)
   if (len(err) > 0) call fatal_all(err)
   call derive_lattice(cfg, lp, err)
   if (len(err) > 0) call fatal_all(err)
+  call warn_lines(warnings)
 
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD)
   call simulation_summary(sim)
@@ -65,6 +66,23 @@ contains
     if (rank /= 0) allocate (character(len=n) :: text)
     if (n > 0) call MPI_Bcast(text, n, MPI_CHARACTER, 0, MPI_COMM_WORLD)
   end subroutine read_input
+
+  !> Each line of a newline-separated list of warnings, through the one warning routine.
+  subroutine warn_lines(lines)
+    character(len=*), intent(in) :: lines
+    integer :: a, b
+    a = 1
+    do while (a <= len(lines))
+      b = index(lines(a:), new_line('a'))
+      if (b == 0) then
+        b = len(lines) + 1
+      else
+        b = a + b - 1
+      end if
+      if (b > a) call warn(lines(a:b - 1))
+      a = b + 1
+    end do
+  end subroutine warn_lines
 
   subroutine print_info(cli)
     type(cli_t), intent(in) :: cli

@@ -5,3 +5,5 @@ dkt_add_pytest(NAME analytic_flows FILE tests/test_flows.py LABELS regression PR
   TIMEOUT 600)
 dkt_add_pytest(NAME decomposition_bitwise FILE tests/test_decomposition.py LABELS mpi
   PROCESSORS 3 TIMEOUT 600)
+dkt_add_pytest(NAME particles FILE tests/test_particles.py LABELS regression mpi PROCESSORS 3
+  TIMEOUT 1500)

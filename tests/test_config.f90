@@ -8,7 +8,7 @@ program test_config
   use dkt_kinds, only: wp
   use dkt_config, only: config_t, lattice_params_t, cli_t, config_load, config_validate, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
-                        config_output_dir
+                        config_output_dir, MAX_PARTICLES
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
@@ -26,6 +26,10 @@ program test_config
   call test_derive_lattice()
   call test_command_line()
   call test_errors()
+  call test_particle_keys()
+  call test_particle_scenes_accept()
+  call test_particle_warnings()
+  call test_particle_errors()
 
   write (*, '(i0,a,i0,a)') n_pass, ' passed, ', n_fail, ' failed'
   if (n_fail > 0) error stop 1
@@ -124,6 +128,22 @@ contains
     call check('file and name kept: input/test.nml -> test', cfg%file == FILE .and. &
                cfg%name == 'test')
     call check('output dir defaults to runs/<name>', config_output_dir(cfg) == 'runs/test')
+    call check('MAX_PARTICLES is 16 and every particle array holds that many', &
+               MAX_PARTICLES == 16 .and. size(cfg%particles%diameter) == 16 .and. &
+               size(cfg%particles%motion) == 16 .and. size(cfg%particles%omega) == 16)
+    call check('default particles: none; D 0.2 cm, rho_p 1.01, at (1, 1), at rest, free', &
+               cfg%particles%count == 0 .and. all(same(cfg%particles%diameter, 0.2_wp)) .and. &
+               all(same(cfg%particles%density, 1.01_wp)) .and. &
+               all(same(cfg%particles%x, 1.0_wp)) .and. all(same(cfg%particles%y, 1.0_wp)) .and. &
+               all(same(cfg%particles%u, 0.0_wp)) .and. all(same(cfg%particles%v, 0.0_wp)) .and. &
+               all(same(cfg%particles%omega, 0.0_wp)) .and. all(cfg%particles%motion == 'free'))
+    call check('default particle gravity 980 cm/s^2', same(cfg%particles%gravity, 980.0_wp))
+    call check('default coupling: Yu bounce-back, the paper''s momentum exchange', &
+               cfg%coupling%bounce_back == 'yu' .and. cfg%coupling%momentum == 'paper')
+    call check('default collision: eps_p = eps''_p = 1e-7, range 1, one sub-step', &
+               same(cfg%collision%stiffness, 1.0e-7_wp) .and. &
+               same(cfg%collision%stiffness_overlap, 1.0e-7_wp) .and. &
+               same(cfg%collision%range, 1.0_wp) .and. cfg%collision%substeps == 1)
 
     call load_ok('one key set', '&lbm tau = 0.8 /', cfg)
     call check('the key set changes, the others keep defaults', same(cfg%lbm%tau, 0.8_wp) .and. &
@@ -243,7 +263,12 @@ contains
                  '&lbm dx = 0.01, tau = 0.8, collision = ''bgk'', s_q = 1.2 /'//NL// &
                  '&inlet velocity = -0.7, profile = ''uniform'', ramp_time = 0.1 /'//NL// &
                  '&run steps = 17, t_ref = 0.3, progress_every = 0, mach_limit = 0.2 /'//NL// &
-                 '&output dir = ''out/it''''s'', field_interval = 0.01, overwrite = T /', cfg)
+                 '&output dir = ''out/it''''s'', field_interval = 0.01, overwrite = T /'//NL// &
+                 '&particles count = 3, diameter = 0.25, 0.125, 0.3, x = 0.3, 0.7, 0.5,'// &
+                 ' y = 1.0, 2.0, 2.6, omega(3) = -1.5, motion = ''free'', ''fixed'','// &
+                 ' ''prescribed'', gravity = 981.5 /'//NL// &
+                 '&coupling bounce_back = ''bfl'', momentum = ''galilean'' /'//NL// &
+                 '&collision stiffness = 2.5e-8, range = 0.5, substeps = 4 /', cfg)
     call config_to_namelist(cfg, text)
     call config_load(back, text, FILE, none, err)
     call check('config_to_namelist text is read back without error', len(err) == 0)
@@ -254,11 +279,23 @@ contains
     call check('round trip keeps strings, choices, logicals, integers', &
                back%output%dir == 'out/it''s' .and. back%domain%lower == 'velocity' .and. &
                back%lbm%collision == 'bgk' .and. back%output%overwrite .and. back%run%steps == 17)
+    call check('round trip keeps particle arrays, choices and the other new groups', &
+               back%particles%count == 3 .and. &
+               all(same(back%particles%diameter, cfg%particles%diameter)) .and. &
+               all(same(back%particles%omega, cfg%particles%omega)) .and. &
+               same(back%particles%omega(3), -1.5_wp) .and. &
+               all(back%particles%motion(1:4) == [character(len=16) :: 'free', 'fixed', &
+                                                  'prescribed', 'free']) .and. &
+               same(back%particles%gravity, 981.5_wp) .and. &
+               back%coupling%bounce_back == 'bfl' .and. back%coupling%momentum == 'galilean' .and. &
+               same(back%collision%stiffness, 2.5e-8_wp) .and. back%collision%substeps == 4)
     call config_to_namelist(back, text2)
     call check('round trip text is stable', text == text2)
     call check('namelist text has one commented line per key', &
                index(text, 'tau = 0.8') > 0 .and. index(text, 'default: 0.65') > 0 .and. &
                index(text, 'allowed: 0.5 < tau <= 10') > 0 .and. index(text, '[cm]') > 0)
+    call check('an array of choices is one line of quoted values', &
+               index(text, 'motion = ''free'', ''fixed'', ''prescribed'', ''free'', ') > 0)
   end subroutine test_round_trip
 
   subroutine test_cross_checks_accept()
@@ -283,6 +320,8 @@ contains
     call load_ok('lattice scene', '&fluid body_force = 0, -2 / &inlet velocity = 0.5 /', cfg)
     call derive_lattice(cfg, lp, err)
     call check('derive_lattice accepts a valid config', len(err) == 0)
+    call check('no particles: particles_on false, cells_per_diameter 0', &
+               (.not. lp%particles_on) .and. same(lp%cells_per_diameter, 0.0_wp))
     ! SPEC E3 by hand: nu_lb = (tau - 1/2)/3, dt = nu_lb dx^2 / (mu/rho).
     nu_lb = (0.65_wp - 0.5_wp)/3.0_wp
     dt = nu_lb*0.004_wp**2/(0.01_wp/1.0_wp)
@@ -314,6 +353,14 @@ contains
     dt = (0.3_wp/3.0_wp)*0.004_wp**2/0.01_wp
     call check('BGK: every rate 1/tau (E4)', all(abs(lp%s - 1.0_wp/0.8_wp) < 1.0e-15_wp))
     call check('field_every = field_interval/dt', lp%field_every == nint(0.01_wp/dt))
+
+    ! Particle 3 is smaller still but unused: only particles 1..count count.
+    call load_ok('lattice scene with particles', '&particles count = 2, '// &
+                 'diameter = 0.2, 0.1, 0.02, x = 1.0, 1.0, y = 3.0, 2.0 /', cfg)
+    call derive_lattice(cfg, lp, err)
+    call check('particles_on with count > 0', len(err) == 0 .and. lp%particles_on)
+    call check('cells_per_diameter = smallest used diameter/dx = 0.1/0.004 = 25', &
+               close_to(lp%cells_per_diameter, 25.0_wp))
 
     cfg%lbm%tau = 0.3_wp
     call config_validate(cfg, err)
@@ -458,5 +505,245 @@ contains
                       [character(len=60) :: 'cannot open namelist file ''/nonexistent/', &
                        'scene.nml'': no such file'])
   end subroutine test_errors
+
+  ! ---------------------------------------------------------------- particles
+
+  subroutine test_particle_keys()
+    type(config_t) :: cfg
+    call load_ok('particle arrays as lists', '&particles count = 2, diameter = 0.2, 0.1,'// &
+                 ' density = 1.5, 2.5, x = 1.0, 1.2, y = 4.2, 3.8 /', cfg)
+    call check('real lists fill elements 1 and 2, the rest keep defaults', &
+               cfg%particles%count == 2 .and. &
+               all(same(cfg%particles%diameter(1:3), [0.2_wp, 0.1_wp, 0.2_wp])) .and. &
+               all(same(cfg%particles%density(1:3), [1.5_wp, 2.5_wp, 1.01_wp])) .and. &
+               all(same(cfg%particles%x(1:3), [1.0_wp, 1.2_wp, 1.0_wp])) .and. &
+               all(same(cfg%particles%y(1:2), [4.2_wp, 3.8_wp])))
+    call load_ok('particle array element', '&particles count = 2, y = 3, 2, diameter(2) = 0.1,'// &
+                 ' motion(2) = ''fixed'' /', cfg)
+    call check('diameter(2) set, diameter(1) default', &
+               all(same(cfg%particles%diameter(1:2), [0.2_wp, 0.1_wp])))
+    call check('motion(2) = ''fixed'' sets element 2 only', &
+               cfg%particles%motion(2) == 'fixed' .and. cfg%particles%motion(1) == 'free' .and. &
+               all(cfg%particles%motion(3:) == 'free'))
+    call load_ok('list of choices, quoted and not, any case', '&particles count = 3,'// &
+                 ' y = 1, 2, 3, motion = ''PRESCRIBED'', fixed, ''Free'' /', cfg)
+    call check('list of choices fills elements 1 to 3, lower case', &
+               all(cfg%particles%motion(1:3) == [character(len=16) :: 'prescribed', 'fixed', &
+                                                 'free']))
+    call load_ok('null value in a list of choices', '&particles motion = fixed, fixed'//NL// &
+                 'motion = , ''prescribed'' /', cfg)
+    call check('a null value leaves that choice unchanged', &
+               cfg%particles%motion(1) == 'fixed' .and. cfg%particles%motion(2) == 'prescribed')
+    call load_ok('element 16 of each particle array', '&particles diameter(16) = 0.5,'// &
+                 ' motion(16) = ''prescribed'', omega(16) = 2 /', cfg)
+    call check('the last element is reachable', same(cfg%particles%diameter(16), 0.5_wp) .and. &
+               cfg%particles%motion(16) == 'prescribed' .and. same(cfg%particles%omega(16), 2.0_wp))
+    call load_ok('coupling and collision keys', '&coupling bounce_back = ''halfway'','// &
+                 ' momentum = ''galilean'' / &collision stiffness = 2e-7,'// &
+                 ' stiffness_overlap = 3e-8, range = 0, substeps = 1000 /'// &
+                 ' &particles gravity = 0 /', cfg)
+    call check('coupling choices read', cfg%coupling%bounce_back == 'halfway' .and. &
+               cfg%coupling%momentum == 'galilean')
+    call check('collision values read (range 0 and substeps 1000 are allowed)', &
+               same(cfg%collision%stiffness, 2.0e-7_wp) .and. &
+               same(cfg%collision%stiffness_overlap, 3.0e-8_wp) .and. &
+               same(cfg%collision%range, 0.0_wp) .and. cfg%collision%substeps == 1000)
+    call check('gravity 0 is allowed', same(cfg%particles%gravity, 0.0_wp))
+
+    call load_ok('--set of particle elements and lists', '&particles count = 3, y = 1, 2, 3 /', &
+                 cfg, [character(len=48) :: 'particles.motion=fixed,''prescribed''', &
+                       'particles.motion(3)=PRESCRIBED', 'particles.diameter(2)=0.15', &
+                       'particles.x=0.5,1.5', 'coupling.bounce_back=bfl'])
+    call check('--set of a list of choices (quotes optional)', &
+               all(cfg%particles%motion(1:3) == [character(len=16) :: 'fixed', 'prescribed', &
+                                                 'prescribed']))
+    call check('--set of a real element and a real list', &
+               all(same(cfg%particles%diameter(1:3), [0.2_wp, 0.15_wp, 0.2_wp])) .and. &
+               all(same(cfg%particles%x(1:3), [0.5_wp, 1.5_wp, 1.0_wp])))
+    call check('--set of a choice of &coupling', cfg%coupling%bounce_back == 'bfl')
+  end subroutine test_particle_keys
+
+  subroutine test_particle_scenes_accept()
+    type(config_t) :: cfg
+    ! SPEC 7, case0_box: 2 x 8 cm, open ends, two equal disks D = 0.2 at (1, 7.2) and (1, 6.8).
+    call load_ok('the case0_box scene', '&domain width = 2, height = 8, lower = ''velocity'','// &
+                 ' upper = ''outflow'' / &lbm dx = 0.008 / &particles count = 2,'// &
+                 ' x = 1, 1, y = 7.2, 6.8 /', cfg)
+    ! SPEC 7, single: box 2 x 6 cm, D = 0.25, rho_p = 1.25, released at (1, 4).
+    call load_ok('the single scene', '&domain height = 6 / &fluid viscosity = 0.1 /'// &
+                 ' &particles count = 1, diameter = 0.25, density = 1.25, x = 1, y = 4 /', cfg)
+    ! Centres exactly one contact distance apart: 4.0 - 3.85 = 0.15 = (0.2 + 0.1)/2, which in
+    ! floating point comes out one rounding below the contact distance.
+    call load_ok('two particles touching', '&particles count = 2, diameter = 0.2, 0.1,'// &
+                 ' x = 1, 1, y = 4.0, 3.85 /', cfg)
+    call load_ok('particles may overlap a side if the sides are periodic', &
+                 '&domain sides = ''periodic'' / &particles count = 1, x = 0.05, y = 2 /', cfg)
+    call load_ok('particles may overlap an open end', '&domain upper = ''outflow'' /'// &
+                 ' &particles count = 1, y = 4.95 /', cfg)
+    call load_ok('a particle just clear of the wall', '&particles count = 1, x = 0.1001 /', cfg)
+    call load_ok('only particles 1..count are checked', '&particles count = 1, y(2) = 1,'// &
+                 ' x(3) = -5, diameter(4) = 0.001, motion(5) = ''fixed'', u(5) = 1 /', cfg)
+    call load_ok('prescribed particles keep any velocity', '&particles count = 1,'// &
+                 ' motion = ''prescribed'', u = 1, v = -2, omega = 3 /', cfg)
+    call load_ok('fixed particle at rest', '&particles count = 1, motion = ''fixed'' /', cfg)
+  end subroutine test_particle_scenes_accept
+
+  !> Fewer than 8 cells per diameter is a warning, not an error; 8 or more (and count = 0)
+  !! gives none. dx = 0.004 cm throughout.
+  subroutine test_particle_warnings()
+    type(config_t) :: cfg
+    type(lattice_params_t) :: lp
+    character(len=:), allocatable :: err, warnings
+    call config_load(cfg, '&particles count = 2, diameter = 0.2, 0.024, y = 2, 3 /', FILE, &
+                     none, err, warnings)
+    call check('6 cells per diameter is accepted', len(err) == 0)
+    call expect_parts('6 cells per diameter gives a warning naming key, value, dx and cells', &
+                      warnings, [character(len=40) :: 'input/test.nml:1:', &
+                                 '&particles diameter(2) = 0.024', '&lbm dx = 0.004', &
+                                 '6.0 cells per diameter', 'fewer than 8', '0.003'])
+    call check('one warning for one coarse particle', index(warnings, NL) == 0)
+    call derive_lattice(cfg, lp, err, warnings)
+    call check('derive_lattice returns the same warning', len(err) == 0 .and. &
+               index(warnings, 'diameter(2) = 0.024') > 0)
+
+    call config_load(cfg, '&particles count = 3, diameter = 0.016, 0.2, 0.03,'// &
+                     ' y = 2, 3, 4 /', FILE, none, err, warnings)
+    call check('exactly 4 cells per diameter is accepted', len(err) == 0)
+    call check('two coarse particles: two warning lines, 1 and 3', &
+               index(warnings, 'diameter(1) = 0.016') > 0 .and. &
+               index(warnings, 'diameter(3) = 0.03') > 0 .and. &
+               index(warnings, 'diameter(2)') == 0 .and. &
+               index(warnings, NL) > index(warnings, 'diameter(1)') .and. &
+               index(warnings, NL) < index(warnings, 'diameter(3)'))
+
+    call config_load(cfg, '&particles count = 1, diameter = 0.032 /', FILE, none, err, warnings)
+    call check('8 cells per diameter: no warning', len(err) == 0 .and. len(warnings) == 0)
+    call config_load(cfg, '&particles diameter = 0.02 /', FILE, none, err, warnings)
+    call check('unused coarse particles (count = 0): no warning', len(err) == 0 .and. &
+               len(warnings) == 0)
+    call config_load(cfg, '&particles count = 1, diameter = 0.024 / &run t_end = 1e-9 /', &
+                     FILE, none, err, warnings)
+    call check('with an error the warnings are empty', len(err) > 0 .and. len(warnings) == 0)
+  end subroutine test_particle_warnings
+
+  subroutine test_particle_errors()
+    character(len=*), parameter :: TWO = '&particles count = 2, x = 1, 1, y = 2, 3 '
+    call expect_error('error: count above MAX_PARTICLES', '&particles count = 17 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&particles', 'count', &
+                       '= 17', '0 <= count <= 16'])
+    call expect_error('error: negative count', '&particles count = -1 /', &
+                      [character(len=40) :: '&particles', 'count = -1', '0 <= count <= 16'])
+    call expect_error('error: index past MAX_PARTICLES', '&particles x(17) = 1 /', &
+                      [character(len=40) :: '&particles', 'x(17)', 'index 17', '16 elements'])
+    call expect_error('error: diameter 0', TWO//'diameter(2) = 0 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&particles diameter(2) = 0.0', &
+                       'out of range', 'diameter(i) > 0'])
+    call expect_error('error: negative density', '&particles density(1) = -1 /', &
+                      [character(len=40) :: '&particles density(1) = -1.0', 'density(i) > 0'])
+    call expect_error('error: motion not a choice', TWO//'motion(2) = ''fixd'' /', &
+                      [character(len=40) :: 'input/test.nml:1:', &
+                       '&particles motion(2) = ''fixd''', '''free'', ''fixed'', ''prescribed''', &
+                       'did you mean ''fixed'''])
+    call expect_error('error: motion in a list not a choice', &
+                      '&particles motion = free, moving /', &
+                      [character(len=40) :: '&particles motion(2) = ''moving''', 'not one of'])
+    call expect_error('error: too many motions', '&particles motion(16) = free, fixed /', &
+                      [character(len=40) :: '&particles', 'motion(16)', 'too many'])
+    call expect_error('error: motion value too long', &
+                      '&particles motion(1) = ''prescribed_motion'' /', &
+                      [character(len=40) :: '&particles motion(1)', 'too long', 'at most 16'])
+    call expect_error('error: negative gravity', '&particles gravity = -980 /', &
+                      [character(len=40) :: '&particles gravity = -980.0', 'gravity >= 0'])
+    call expect_error('error: bounce_back not a choice', '&coupling bounce_back = ''ladd'' /', &
+                      [character(len=40) :: '&coupling bounce_back = ''ladd''', &
+                       '''halfway'', ''yu'', ''bfl'''])
+    call expect_error('error: momentum not a choice', '&coupling momentum = ''wen'' /', &
+                      [character(len=40) :: '&coupling momentum = ''wen''', &
+                       '''paper'', ''galilean'''])
+    call expect_error('error: stiffness 0', '&collision stiffness = 0 /', &
+                      [character(len=40) :: '&collision stiffness = 0.0', 'stiffness > 0'])
+    call expect_error('error: negative stiffness_overlap', &
+                      '&collision stiffness_overlap = -1e-7 /', &
+                      [character(len=40) :: '&collision stiffness_overlap = -1.0e-7', &
+                       'stiffness_overlap > 0'])
+    call expect_error('error: negative range', '&collision range = -0.5 /', &
+                      [character(len=40) :: '&collision range = -0.5', 'range >= 0'])
+    call expect_error('error: substeps 0', '&collision substeps = 0 /', &
+                      [character(len=40) :: '&collision substeps = 0', '1 <= substeps <= 1000'])
+    call expect_error('error: substeps 1001', '&collision substeps = 1001 /', &
+                      [character(len=40) :: '&collision substeps = 1001', '1 <= substeps <= 1000'])
+
+    ! Fixed particles do not move.
+    call expect_error('error: fixed particle with u', TWO//'motion(2) = ''fixed'', u(2) = 1 /', &
+                      [character(len=40) :: 'input/test.nml:1:', 'motion(2) = ''fixed''', &
+                       '&particles u(2) = 1.0', 'omega(2) = 0', 'prescribed'])
+    call expect_error('error: fixed particle with omega', &
+                      TWO//'motion = fixed, fixed, omega(1) = -3 /', &
+                      [character(len=40) :: 'motion(1) = ''fixed''', '&particles omega(1) = -3.0'])
+
+    ! In the channel, clear of the walls (dx = 0.004 cm, width 2 cm, height 5 cm).
+    call expect_error('error: particle overlaps the side wall x = 0', &
+                      TWO//'x(2) = 0.05 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&particles x(2) = 0.05', &
+                       'diameter(2) = 0.2', 'wall at x = 0', 'allowed: 0.1 < x(2) < 1.9'])
+    call expect_error('error: particle touching the side wall is an overlap', &
+                      TWO//'x(1) = 0.1 /', &
+                      [character(len=40) :: '&particles x(1) = 0.1', 'wall at x = 0', &
+                       'touching counts as overlap', '0.1 < x(1) < 1.9'])
+    call expect_error('error: particle overlaps the side wall x = width', &
+                      TWO//'x(1) = 1.95 /', &
+                      [character(len=40) :: '&particles x(1) = 1.95', 'wall at x = 2.0', &
+                       '&domain width = 2.0', '0.1 < x(1) < 1.9'])
+    call expect_error('error: centre outside the channel', TWO//'x(1) = -0.5 /', &
+                      [character(len=40) :: '&particles x(1) = -0.5', 'outside the channel'])
+    call expect_error('error: centre outside a periodic channel', &
+                      '&domain sides = ''periodic'' / '//TWO//'x(2) = 2.5 /', &
+                      [character(len=40) :: '&particles x(2) = 2.5', 'outside the channel', &
+                       '0.0 <= x(2) <= 2.0'])
+    call expect_error('error: particle overlaps the lower wall end', TWO//'y(1) = 0.05 /', &
+                      [character(len=40) :: '&particles y(1) = 0.05', 'wall at y = 0', &
+                       'lower = ''wall''', '0.1 < y(1) < 4.9'])
+    call expect_error('error: particle overlaps the upper wall end', TWO//'y(2) = 4.95 /', &
+                      [character(len=40) :: '&particles y(2) = 4.95', 'wall at y = 5.0', &
+                       '0.1 < y(2) < 4.9'])
+    call expect_error('error: centre beyond an open end', &
+                      '&domain upper = ''outflow'' / '//TWO//'y(2) = 5.5 /', &
+                      [character(len=40) :: '&particles y(2) = 5.5', 'outside the channel', &
+                       'upper = ''outflow''', '0.1 < y(2) <= 5.0'])
+    call expect_error('error: particle as wide as the channel', &
+                      '&domain width = 0.2 / &particles count = 1, x = 0.1 /', &
+                      [character(len=40) :: '&particles x(1) = 0.1', 'diameter(1) = 0.2', &
+                       'not narrower', 'diameter(1) < width'])
+    call expect_error('error: a position set by --set names the option', TWO//'/', &
+                      [character(len=40) :: '--set particles.x(2)=0.05', 'x(2) = 0.05'], &
+                      [character(len=40) :: 'particles.x(2)=0.05'])
+
+    ! No overlap between particles (contact distance = sum of the radii).
+    call expect_error('error: two particles overlap', &
+                      '&particles count = 2, x = 1, 1, y = 4.0, 3.9 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&particles', &
+                       'particles 1 and 2 overlap', 'y(1) = 4.0', 'y(2) = 3.9', &
+                       'distance of the centres 0.1', 'contact distance', '= 0.2 cm'])
+    call expect_error('error: the third particle overlaps the first', &
+                      '&particles count = 3, x = 1.0, 1.0, 1.1, y = 4.0, 3.0, 4.05,'// &
+                      ' diameter = 0.2, 0.2, 0.1 /', &
+                      [character(len=40) :: 'particles 1 and 3 overlap', 'x(3) = 1.1', &
+                       'diameter(3) = 0.1', '= 0.15'])
+    call expect_error('error: particles overlap across periodic sides', &
+                      '&domain sides = ''periodic'' / &particles count = 2,'// &
+                      ' x = 0.05, 1.95, y = 2, 2 /', &
+                      [character(len=40) :: 'particles 1 and 2 overlap', 'x(1) = 0.05', &
+                       'x(2) = 1.95', 'distance of the centres 0.1'])
+
+    ! Resolution: at least 4 cells per diameter.
+    call expect_error('error: fewer than 4 cells per diameter', TWO//'diameter(2) = 0.012 /', &
+                      [character(len=40) :: 'input/test.nml:1:', '&particles diameter(2) = 0.012', &
+                       '&lbm dx = 0.004', '3.0 cells per diameter', 'diameter(2)/dx >= 4', &
+                       'dx <= diameter(2)/4 = 0.003 cm'])
+    call expect_error('error: dx set by --set too coarse for a particle', TWO//'/', &
+                      [character(len=40) :: '--set lbm.dx=0.1', '&lbm dx = 0.1', &
+                       'diameter(1) = 0.2', '2.0 cells per diameter', '0.05 cm'], &
+                      [character(len=40) :: 'lbm.dx=0.1'])
+  end subroutine test_particle_errors
 
 end program test_config

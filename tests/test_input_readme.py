@@ -57,6 +57,25 @@ def value_type(value: str, allowed: str) -> str:
     raise ValueError(f"cannot tell the type of value {value!r}")
 
 
+def split_values(value: str) -> list[str]:
+    """The items of a namelist value list, split at the commas outside quotes."""
+    items: list[str] = []
+    current = ""
+    quote = None
+    for char in value:
+        if quote:
+            quote = None if char == quote else quote  # a doubled quote closes and reopens
+        elif char in "'\"":
+            quote = char
+        elif char == ",":
+            items.append(current.strip())
+            current = ""
+            continue
+        current += char
+    items.append(current.strip())
+    return items
+
+
 def parse_print_defaults(text: str) -> Table:
     """Keys of `dktlbm --print-defaults`; an array key is named key(n) as in the README."""
     table: Table = {}
@@ -74,7 +93,7 @@ def parse_print_defaults(text: str) -> Table:
         match = LINE.match(line)
         assert group and match, f"--print-defaults line not understood: {line!r}"
         value = match["value"]
-        n_values = 1 if value[:1] in ("'", '"') else len(value.split(","))
+        n_values = len(split_values(value))
         key = match["name"].lower() + (f"({n_values})" if n_values > 1 else "")
         table[(group, key)] = {
             "type": value_type(value, match["allowed"]),
@@ -229,6 +248,25 @@ def test_checker_catches_a_changed_column(
     cells[HEADER.index(column)] = value
     problems = _problems(_edit_row(readme_text, "tau", "| " + " | ".join(cells) + " |"), printed)
     assert any(f"tau: {column}" in p for p in problems), problems
+
+
+def test_array_keys_are_named_with_their_size() -> None:
+    """Lists of numbers and of quoted choices are arrays; a comma inside a string is not."""
+    printed = "\n".join(
+        [
+            "&g",
+            "  a = 1.0, 2.0 ! [cm] default: 0.0, 0.0; allowed: any; numbers",
+            "  m = 'free', 'fixed' ! [-] default: 'free', 'free'; allowed: one of 'free', "
+            "'fixed'; choices",
+            "  s = 'a, b' ! [-] default: ''; allowed: text of at most 9 characters; one string",
+            "  q = 'it''s, ok', 'x' ! [-] default: 'x', 'x'; allowed: one of 'x'; doubled quote",
+            "/",
+        ]
+    )
+    table = parse_print_defaults(printed)
+    assert set(table) == {("g", "a(2)"), ("g", "m(2)"), ("g", "s"), ("g", "q(2)")}, table
+    assert table[("g", "m(2)")]["type"] == "choice"
+    assert table[("g", "s")]["type"] == "string"
 
 
 def test_numbers_compare_by_value_and_text_exactly() -> None:

@@ -4,7 +4,13 @@ Proves that the parallel HDF5 writer puts every rank's rows where they belong (v
 against their defining formula at every point, computed here from the indices), that uneven
 slabs and a rank with no rows are handled, that the result does not depend on the rank count,
 that the group and /run attributes are there, that overwrite replaces file and sidecar, and
-that the XDMF sidecar names only datasets that exist, with the dimensions it states.
+that the XDMF sidecar names only datasets that exist, with the dimensions it states. For the
+particle output: 2-D tables grow one (n_samples, ncols) row per sample beside a 1-D series in
+the same group, both extendible and chunked, holding rank 0's values only; attributes written
+through io_write_attribute keep rank 0's value and its type (integer, real, string), replace an
+earlier attribute of the same name, and create missing groups; writing a row of another width
+into a table, or a series row into a table, stops the program with a message naming the
+dataset.
 
 The program is found through the environment variable DKT_TEST_IO_EXE (set by ctest);
 mpiexec through MPIEXEC (default: mpiexec), with MPIEXEC_NUMPROC_FLAG and MPIEXEC_PREFLAGS
@@ -30,6 +36,9 @@ DX = 0.25
 FIELDS = ("rho", "ux", "uy", "vorticity", "pressure")
 SNAPSHOTS = {0: (0.0, 0.0), 10: (0.125, 0.5)}
 RANKS = (1, 2, 3, 4)
+# The particle output of tests/test_io.f90: 3-column tables over 4 samples beside the series t.
+TABLES = ("x", "y", "omega")
+NCOL, NSAMPLES = 3, 4
 
 
 def expected_field(k: int, step: int) -> np.ndarray:
@@ -41,13 +50,26 @@ def expected_field(k: int, step: int) -> np.ndarray:
     return 1000.0 * k + 10.0 * j + i + 0.25 * step
 
 
+def expected_table(k: int) -> np.ndarray:
+    """Table k (1-based) at sample s, column c (1-based): 100 k + 10 s + c + 1/4.
+
+    Returned in h5py's (sample, column) order.
+    """
+    s, c = np.meshgrid(np.arange(1, NSAMPLES + 1), np.arange(1, NCOL + 1), indexing="ij")
+    return 100.0 * k + 10.0 * s + c + 0.25
+
+
+def expected_t() -> np.ndarray:
+    """The series /particles/t: sample s (1-based) at s/8."""
+    return np.arange(1, NSAMPLES + 1) / 8.0
+
+
 def _text(value: object) -> str:
     return value.decode() if isinstance(value, (bytes, np.bytes_)) else str(value)
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
-    """Run the writer once per rank count; map rank count -> output directory."""
+def run_writer(nranks: int, outdir: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """Run the writer on nranks ranks into outdir (extra arguments after the directory)."""
     exe = os.environ.get("DKT_TEST_IO_EXE")
     if not exe:
         pytest.skip("DKT_TEST_IO_EXE is not set (run through ctest)")
@@ -59,13 +81,19 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
     # to start more ranks than cores.
     preflags = os.environ.get("MPIEXEC_PREFLAGS", "--oversubscribe").split()
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    cmd = [mpiexec, np_flag, str(nranks), *preflags, exe, str(outdir), *args]
+    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """Run the writer once per rank count; map rank count -> output directory."""
     out = {}
     for n in RANKS:
         d = tmp_path_factory.mktemp(f"io_{n}ranks")
-        cmd = [mpiexec, np_flag, str(n), *preflags, exe, str(d)]
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+        proc = run_writer(n, d)
         assert proc.returncode == 0, (
-            f"{' '.join(cmd)} exited {proc.returncode}\n"
+            f"{' '.join(map(str, proc.args))} exited {proc.returncode}\n"
             f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
         )
         out[n] = d
@@ -118,14 +146,85 @@ def test_series_keeps_rank0_rows_in_order(runs, nranks):
         np.testing.assert_array_equal(f["diagnostics/b"][()], [-1.0, -2.0, -3.0])
 
 
+@pytest.mark.parametrize("nranks", RANKS)
+def test_tables_grow_one_row_of_rank0_values_per_sample(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        for k, name in enumerate(TABLES, start=1):
+            data = f[f"particles/{name}"]
+            assert data.shape == (NSAMPLES, NCOL)
+            assert data.dtype == np.float64
+            # extendible along the samples only, so chunked; the column count is fixed
+            assert data.maxshape == (None, NCOL)
+            assert data.chunks is not None and data.chunks[1] == NCOL
+            # the other ranks passed -huge: any of their values stored would show here
+            np.testing.assert_array_equal(data[()], expected_table(k))
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_series_and_tables_share_one_group(runs, nranks):
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        assert sorted(f["particles"].keys()) == sorted((*TABLES, "t"))
+        t = f["particles/t"]
+        assert t.shape == (NSAMPLES,)
+        assert t.maxshape == (None,)
+        assert t.dtype == np.float64
+        np.testing.assert_array_equal(t[()], expected_t())
+
+
+@pytest.mark.parametrize("nranks", RANKS)
+def test_attributes_keep_rank0_value_and_type(runs, nranks):
+    def attr(f: h5py.File, path: str, name: str) -> tuple[object, np.dtype]:
+        obj = f[path]
+        assert obj.attrs.get_id(name).shape == (), f"{path} {name} is not a scalar"
+        return obj.attrs[name], obj.attrs.get_id(name).dtype
+
+    with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
+        value, dtype = attr(f, "particles", "count")
+        assert dtype.kind == "i" and value == NCOL  # 7 first, replaced by 3
+        value, dtype = attr(f, "particles/x", "unit")  # on a dataset
+        assert dtype.kind == "S" and value == b"cm"
+        value, dtype = attr(f, "diagnostics", "pattern")
+        assert dtype.kind == "S" and value == b"repeated"
+        value, dtype = attr(f, "diagnostics", "note")
+        assert dtype.kind == "S" and value == b""
+        # both groups created by the attribute; the string 'tbd' replaced by a real
+        assert isinstance(f["checks"], h5py.Group) and isinstance(f["checks/nested"], h5py.Group)
+        value, dtype = attr(f, "checks/nested", "ratio")
+        assert dtype == np.float64 and value == 3.0 / 8.0
+        # a replaced attribute is gone, not kept beside the new one
+        assert sorted(f["particles"].attrs) == ["count"]
+        assert sorted(f["particles/x"].attrs) == ["unit"]
+        assert sorted(f["diagnostics"].attrs) == ["note", "pattern"]
+        assert sorted(f["checks/nested"].attrs) == ["ratio"]
+
+
+@pytest.mark.parametrize(
+    ("mode", "words"),
+    [
+        ("bad_columns", ["has 3 columns", "new row has 4"]),
+        ("bad_kind", ["has 2 dimensions", "write it with io_write_table"]),
+    ],
+)
+def test_a_table_refuses_rows_of_another_shape_or_kind(tmp_path, mode, words):
+    proc = run_writer(2, tmp_path, mode)
+    assert proc.returncode != 0, f"{mode} went through:\n{proc.stderr}"
+    assert "accepted the mistake" not in proc.stderr
+    assert "particles/x" in proc.stderr
+    for word in words:
+        assert word in proc.stderr, f"{word!r} missing from the message:\n{proc.stderr}"
+
+
 def test_rank_counts_give_identical_arrays(runs):
     def arrays(d: Path) -> dict[str, np.ndarray]:
         with h5py.File(d / "io_fields.h5", "r") as f:
-            return {
+            out = {
                 f"{step:06d}/{name}": f[f"fields/{step:06d}/{name}"][()]
                 for step in SNAPSHOTS
                 for name in FIELDS
             }
+            for group in ("particles", "diagnostics"):
+                out.update({f"{group}/{n}": ds[()] for n, ds in f[group].items()})
+            return out
 
     reference = arrays(runs[RANKS[0]])
     for n in RANKS[1:]:
@@ -133,6 +232,21 @@ def test_rank_counts_give_identical_arrays(runs):
         assert other.keys() == reference.keys()
         for key, value in reference.items():
             assert np.array_equal(other[key], value), f"{key} differs on {n} ranks"
+
+
+def test_rank_counts_give_identical_attributes(runs):
+    def attributes(d: Path) -> dict[str, tuple[str, object]]:
+        out = {}
+        with h5py.File(d / "io_fields.h5", "r") as f:
+            for path in ("particles", "particles/x", "diagnostics", "checks/nested"):
+                for name, value in f[path].attrs.items():
+                    out[f"{path} {name}"] = (f[path].attrs.get_id(name).dtype.str, value)
+        return out
+
+    reference = attributes(runs[RANKS[0]])
+    assert len(reference) == 5
+    for n in RANKS[1:]:
+        assert attributes(runs[n]) == reference, f"attributes differ on {n} ranks"
 
 
 @pytest.mark.parametrize("nranks", RANKS)

@@ -1,0 +1,469 @@
+!> Resolved circular particles (SPEC §3): boundary links with the exact circle intersection,
+!> curved bounce-back (E6: halfway, Yu, BFL), momentum exchange (E7, and the Galilean-invariant
+!> variant), Newton–Euler (E8) with gravity and buoyancy (E9) and the Wan–Turek short-range
+!> forces (E10–E11).
+!>
+!> Lattice units throughout: node (i, j) of global row j sits at (i - 1/2, j - 1/2), the side
+!> walls at x = 0 and nx. Every rank keeps the state of every particle and integrates it;
+!> the force on a particle is summed link by link within a row and then row by row in global
+!> order, so every rank gets the same bits whatever the number of ranks.
+!>
+!> Interior nodes are not fluid: after each sweep they hold the equilibrium at the local
+!> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the
+!> wall velocity and the mean density of its fluid neighbours.
+module dkt_particles
+  use mpi_f08, only: MPI_Allgatherv, MPI_Allgather, MPI_INTEGER
+  use dkt_kinds, only: wp, mpi_wp, pi, cs2
+  use dkt_lattice, only: ex, ey, w, opp, equilibrium
+  use dkt_domain, only: domain_t
+  implicit none
+  private
+  public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
+            particles_interior, particles_reduce_forces, particles_move, particles_solid_field, &
+            MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
+
+  integer, parameter :: MOTION_FREE = 1, MOTION_FIXED = 2, MOTION_PRESCRIBED = 3
+  integer, parameter :: BB_HALFWAY = 1, BB_YU = 2, BB_BFL = 3
+
+  !> One rigid disk, lattice units.
+  type :: particle_t
+    real(wp) :: x = 0, y = 0          !! centre
+    real(wp) :: r = 0                 !! radius
+    real(wp) :: u = 0, v = 0          !! velocity
+    real(wp) :: omega = 0             !! angular velocity (counter-clockwise)
+    real(wp) :: density_ratio = 1     !! rho_p / rho_f
+    real(wp) :: mass = 0, inertia = 0 !! M = rho_p pi r^2, I = M r^2 / 2 (per unit depth)
+    integer :: motion = MOTION_FREE
+    real(wp) :: fx = 0, fy = 0, torque = 0    !! hydrodynamic force and torque of the last step
+    real(wp) :: cx = 0, cy = 0                !! collision force of the last step
+  end type particle_t
+
+  type :: particles_t
+    integer :: n = 0
+    type(particle_t), allocatable :: p(:)
+    integer :: scheme = BB_YU
+    logical :: galilean = .false.       !! E7 with (e - u_w) (Wen et al. 2014)
+    real(wp) :: gravity = 0             !! g, lattice units, along -y
+    real(wp) :: stiffness = 1, stiffness_overlap = 1 !! eps_p, eps'_p, lattice units (E10)
+    real(wp) :: range = 1               !! threshold xi (E10), lattice spacings
+    integer :: substeps = 1
+    ! boundary links of this slab, ordered by particle, row, column, direction
+    integer :: nlinks = 0
+    integer, allocatable :: lp(:), lx(:), ly(:), ld(:)  !! particle, column, local row, direction
+    real(wp), allocatable :: lq(:)                      !! fluid fraction of the link
+    logical, allocatable :: lff(:)                      !! second fluid node available
+    real(wp), allocatable :: rows(:, :, :)              !! (3, nyl, n): per-row force, torque
+  end type particles_t
+
+contains
+
+  !> Set up n particles from centres, radii, velocities (lattice units) and motion modes.
+  subroutine particles_init(ps, dom, x, y, r, u, v, omega, density_ratio, motion, scheme, &
+                            galilean, gravity, stiffness, stiffness_overlap, range, substeps)
+    type(particles_t), intent(out) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(in) :: x(:), y(:), r(:), u(:), v(:), omega(:), density_ratio(:)
+    integer, intent(in) :: motion(:), scheme, substeps
+    logical, intent(in) :: galilean
+    real(wp), intent(in) :: gravity, stiffness, stiffness_overlap, range
+    integer :: k
+    ps%n = size(x)
+    allocate (ps%p(ps%n))
+    do k = 1, ps%n
+      ps%p(k)%x = x(k)
+      ps%p(k)%y = y(k)
+      ps%p(k)%r = r(k)
+      ps%p(k)%density_ratio = density_ratio(k)
+      ps%p(k)%motion = motion(k)
+      ps%p(k)%mass = density_ratio(k)*pi*r(k)**2
+      ps%p(k)%inertia = 0.5_wp*ps%p(k)%mass*r(k)**2
+      if (motion(k) /= MOTION_FIXED) then
+        ps%p(k)%u = u(k)
+        ps%p(k)%v = v(k)
+        ps%p(k)%omega = omega(k)
+      end if
+    end do
+    ps%scheme = scheme
+    ps%galilean = galilean
+    ps%gravity = gravity
+    ps%stiffness = stiffness
+    ps%stiffness_overlap = stiffness_overlap
+    ps%range = range
+    ps%substeps = substeps
+    allocate (ps%rows(3, dom%nyl, ps%n))
+    allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0))
+  end subroutine particles_init
+
+  !> Whether the point (px, py) lies strictly inside particle k.
+  pure logical function inside(p, px, py)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
+  end function inside
+
+  !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
+  pure logical function is_fluid(ps, dom, i, jg)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: i, jg
+    integer :: k
+    is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
+    if (.not. is_fluid) return
+    do k = 1, ps%n
+      if (inside(ps%p(k), i - 0.5_wp, jg - 0.5_wp)) then
+        is_fluid = .false.
+        return
+      end if
+    end do
+  end function is_fluid
+
+  !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
+  !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid
+  !! (exact intersection of the segment with the circle).
+  subroutine particles_find_links(ps, dom)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
+    real(wp) :: px, py, dxp, dyp, b, c, t
+    n = 0
+    cap = max(16, size(ps%lp))
+    call resize(cap)
+    do k = 1, ps%n
+      associate (p => ps%p(k))
+        call box(p, dom, i1, i2, j1, j2)
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            if (.not. is_fluid(ps, dom, i, jg)) cycle
+            do d = 1, 8
+              if (.not. inside(p, px + ex(d), py + ey(d))) cycle
+              ! |x_f + t e - X|^2 = r^2, smaller root (x_f is outside)
+              dxp = px - p%x
+              dyp = py - p%y
+              b = dxp*ex(d) + dyp*ey(d)
+              c = dxp*dxp + dyp*dyp - p%r*p%r
+              t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))/(ex(d)**2 + ey(d)**2)
+              n = n + 1
+              if (n > cap) then
+                cap = 2*cap
+                call resize(cap)
+              end if
+              ps%lp(n) = k
+              ps%lx(n) = i
+              ps%ly(n) = j
+              ps%ld(n) = d
+              ps%lq(n) = min(max(t, 1.0e-6_wp), 1.0_wp)
+              ps%lff(n) = is_fluid(ps, dom, i - ex(d), jg - ey(d))
+            end do
+          end do
+        end do
+      end associate
+    end do
+    ps%nlinks = n
+  contains
+    subroutine resize(m)
+      integer, intent(in) :: m
+      integer, allocatable :: ti(:)
+      real(wp), allocatable :: tr(:)
+      logical, allocatable :: tl(:)
+      integer :: keep
+      keep = min(n, size(ps%lp))
+      allocate (ti(m)); ti(1:keep) = ps%lp(1:keep); call move_alloc(ti, ps%lp)
+      allocate (ti(m)); ti(1:keep) = ps%lx(1:keep); call move_alloc(ti, ps%lx)
+      allocate (ti(m)); ti(1:keep) = ps%ly(1:keep); call move_alloc(ti, ps%ly)
+      allocate (ti(m)); ti(1:keep) = ps%ld(1:keep); call move_alloc(ti, ps%ld)
+      allocate (tr(m)); tr(1:keep) = ps%lq(1:keep); call move_alloc(tr, ps%lq)
+      allocate (tl(m)); tl(1:keep) = ps%lff(1:keep); call move_alloc(tl, ps%lff)
+    end subroutine resize
+  end subroutine particles_find_links
+
+  !> E6 and E7 on every link: write the bounced population f_ibar(x_f, t+1) into the slot of
+  !! the solid node that x_f pulls it from, and add the link's momentum exchange to the row
+  !! sums. f holds post-collision populations with halos and ghosts complete.
+  subroutine particles_bounce(ps, dom, f)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    integer :: l, k, i, j, d, db
+    real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
+    ps%rows = 0.0_wp
+    do l = 1, ps%nlinks
+      k = ps%lp(l)
+      i = ps%lx(l)
+      j = ps%ly(l)
+      d = ps%ld(l)
+      db = opp(d)
+      q = ps%lq(l)
+      associate (p => ps%p(k))
+        ! wall point and its velocity u_w = U + Omega x (x_w - X)
+        xw = i - 0.5_wp + q*ex(d)
+        yw = dom%y0 + j - 0.5_wp + q*ey(d)
+        uwx = p%u - p%omega*(yw - p%y)
+        uwy = p%v + p%omega*(xw - p%x)
+        rho = sum(f(i, j, :))
+        wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
+        fi = f(i, j, d)
+        fib = f(i, j, db)
+        fff = 0.0_wp
+        if (ps%lff(l)) fff = f(i - ex(d), j - ey(d), d)
+        select case (ps%scheme)
+        case (BB_YU)
+          if (ps%lff(l)) then
+            fb = ((1.0_wp - q)*fff + q*fi + q*fib + wall)/(1.0_wp + q)
+          else
+            fb = fi + wall
+          end if
+        case (BB_BFL)
+          if (q < 0.5_wp) then
+            if (ps%lff(l)) then
+              fb = 2.0_wp*q*fi + (1.0_wp - 2.0_wp*q)*fff + wall
+            else
+              fb = fi + wall
+            end if
+          else
+            fb = (fi + (2.0_wp*q - 1.0_wp)*fib + wall)/(2.0_wp*q)
+          end if
+        case default
+          fb = fi + wall
+        end select
+        f(i + ex(d), j + ey(d), db) = fb
+        ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the Galilean-invariant
+        ! form replaces e by e - u_w
+        fx = ex(d)*(fi + fb)
+        fy = ey(d)*(fi + fb)
+        if (ps%galilean) then
+          fx = fx - uwx*(fi - fb)
+          fy = fy - uwy*(fi - fb)
+        end if
+        ps%rows(1, j, k) = ps%rows(1, j, k) + fx
+        ps%rows(2, j, k) = ps%rows(2, j, k) + fy
+        ps%rows(3, j, k) = ps%rows(3, j, k) + (xw - p%x)*fy - (yw - p%y)*fx
+      end associate
+    end do
+  end subroutine particles_bounce
+
+  !> Sum the per-row forces of all ranks in global row order, so the total is the same on any
+  !! number of ranks, and store it in each particle.
+  subroutine particles_reduce_forces(ps, dom)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), allocatable :: all(:, :, :), mine(:, :, :)
+    integer, allocatable :: counts(:), displs(:)
+    integer :: k, r, j
+    real(wp) :: s(3)
+    allocate (counts(dom%nranks), displs(dom%nranks))
+    call MPI_Allgather(3*ps%n*dom%nyl, 1, MPI_INTEGER, counts, 1, MPI_INTEGER, dom%comm)
+    displs(1) = 0
+    do r = 2, dom%nranks
+      displs(r) = displs(r - 1) + counts(r - 1)
+    end do
+    ! rank-major layout (3, n, rows) so each rank's block is contiguous
+    allocate (mine(3, ps%n, dom%nyl), all(3, ps%n, dom%ny))
+    do k = 1, ps%n
+      mine(:, k, :) = ps%rows(:, :, k)
+    end do
+    call MPI_Allgatherv(mine, 3*ps%n*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, dom%comm)
+    do k = 1, ps%n
+      s = 0.0_wp
+      do j = 1, dom%ny
+        s = s + all(:, k, j)
+      end do
+      ps%p(k)%fx = s(1)
+      ps%p(k)%fy = s(2)
+      ps%p(k)%torque = s(3)
+    end do
+  end subroutine particles_reduce_forces
+
+  !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
+  !! are not fluid; this keeps them finite and ready for refilling).
+  subroutine particles_interior(ps, dom, f)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    integer :: k, i, j, jg, i1, i2, j1, j2
+    real(wp) :: px, py
+    do k = 1, ps%n
+      associate (p => ps%p(k))
+        call box(p, dom, i1, i2, j1, j2)
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            if (inside(p, px, py)) f(i, j, :) = equilibrium(1.0_wp, p%u - p%omega*(py - p%y), &
+                                                            p%v + p%omega*(px - p%x))
+          end do
+        end do
+      end associate
+    end do
+  end subroutine particles_interior
+
+  !> E8–E11: advance free particles by one fluid step (in substeps for the collision forces),
+  !! prescribed ones by their given velocity; then refill the nodes they uncovered.
+  subroutine particles_move(ps, dom, f, walls_y)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
+    type(particle_t), allocatable :: old(:)
+    real(wp) :: h, ax, ay, gx, gy
+    integer :: k, s
+    allocate (old, source=ps%p)
+    h = 1.0_wp/ps%substeps
+    do s = 1, ps%substeps
+      call collision_forces(ps, dom, walls_y)
+      do k = 1, ps%n
+        associate (p => ps%p(k))
+          select case (p%motion)
+          case (MOTION_FREE)
+            ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
+            gx = 0.0_wp
+            gy = -(p%density_ratio - 1.0_wp)*pi*p%r**2*ps%gravity
+            ax = (p%fx + p%cx + gx)/p%mass
+            ay = (p%fy + p%cy + gy)/p%mass
+            ! E8: X += U h + a h^2 / 2, U += a h, Omega += T/I h
+            p%x = p%x + p%u*h + 0.5_wp*ax*h*h
+            p%y = p%y + p%v*h + 0.5_wp*ay*h*h
+            p%u = p%u + ax*h
+            p%v = p%v + ay*h
+            p%omega = p%omega + p%torque/p%inertia*h
+          case (MOTION_PRESCRIBED)
+            p%x = p%x + p%u*h
+            p%y = p%y + p%v*h
+          end select
+        end associate
+      end do
+    end do
+    call refill(ps, old, dom, f)
+  end subroutine particles_move
+
+  !> E10–E11 (Wan & Turek 2006) between pairs and against the side walls (and closed ends).
+  subroutine collision_forces(ps, dom, walls_y)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    logical, intent(in) :: walls_y
+    integer :: a, b
+    real(wp) :: fx, fy
+    do a = 1, ps%n
+      ps%p(a)%cx = 0.0_wp
+      ps%p(a)%cy = 0.0_wp
+    end do
+    do a = 1, ps%n
+      do b = a + 1, ps%n
+        call repel(ps%p(a)%x, ps%p(a)%y, ps%p(b)%x, ps%p(b)%y, ps%p(a)%r + ps%p(b)%r, &
+                   ps%stiffness, ps%stiffness_overlap, ps%range, fx, fy)
+        ps%p(a)%cx = ps%p(a)%cx + fx
+        ps%p(a)%cy = ps%p(a)%cy + fy
+        ps%p(b)%cx = ps%p(b)%cx - fx
+        ps%p(b)%cy = ps%p(b)%cy - fy
+      end do
+      associate (p => ps%p(a))
+        ! E11: the mirror particle across each wall, stiffness halved
+        call wall(-p%x, p%y)
+        call wall(2.0_wp*dom%nx - p%x, p%y)
+        if (walls_y) then
+          call wall(p%x, -p%y)
+          call wall(p%x, 2.0_wp*dom%ny - p%y)
+        end if
+      end associate
+    end do
+  contains
+    subroutine wall(mx, my)
+      real(wp), intent(in) :: mx, my
+      real(wp) :: wx, wy
+      call repel(ps%p(a)%x, ps%p(a)%y, mx, my, 2.0_wp*ps%p(a)%r, 0.5_wp*ps%stiffness, &
+                 0.5_wp*ps%stiffness_overlap, ps%range, wx, wy)
+      ps%p(a)%cx = ps%p(a)%cx + wx
+      ps%p(a)%cy = ps%p(a)%cy + wy
+    end subroutine wall
+  end subroutine collision_forces
+
+  !> E10 on the first of two disks whose radii add to rsum.
+  pure subroutine repel(xa, ya, xb, yb, rsum, eps, eps_overlap, range, fx, fy)
+    real(wp), intent(in) :: xa, ya, xb, yb, rsum, eps, eps_overlap, range
+    real(wp), intent(out) :: fx, fy
+    real(wp) :: d, c
+    d = sqrt((xa - xb)**2 + (ya - yb)**2)
+    if (d > rsum + range) then
+      c = 0.0_wp
+    else if (d >= rsum) then
+      c = (rsum + range - d)**2/eps
+    else
+      c = (rsum - d)/eps_overlap
+    end if
+    fx = (xa - xb)*c
+    fy = (ya - yb)*c
+  end subroutine repel
+
+  !> Nodes inside a particle's old disk and outside every new one become fluid: equilibrium at
+  !! the wall velocity there with the mean density of their fluid neighbours.
+  subroutine refill(ps, old, dom, f)
+    type(particles_t), intent(in) :: ps
+    type(particle_t), intent(in) :: old(:)
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    integer :: k, i, j, jg, d, nf, i1, i2, j1, j2
+    real(wp) :: px, py, rho
+    do k = 1, ps%n
+      associate (o => old(k), p => ps%p(k))
+        call box(o, dom, i1, i2, j1, j2)
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            if (.not. inside(o, px, py)) cycle
+            if (.not. is_fluid(ps, dom, i, jg)) cycle
+            ! mean density of the fluid neighbours in the same row: a row is never split
+            ! between ranks, so the refill does not depend on the decomposition
+            rho = 0.0_wp
+            nf = 0
+            do d = 1, 3, 2
+              if (inside(o, px + ex(d), py)) cycle
+              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+              rho = rho + sum(f(i + ex(d), j, :))
+              nf = nf + 1
+            end do
+            if (nf > 0) then
+              rho = rho/nf
+            else
+              rho = 1.0_wp
+            end if
+            f(i, j, :) = equilibrium(rho, p%u - p%omega*(py - p%y), p%v + p%omega*(px - p%x))
+          end do
+        end do
+      end associate
+    end do
+  end subroutine refill
+
+  !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
+  !! nodes for the links and their second fluid nodes.
+  pure subroutine box(p, dom, i1, i2, j1, j2)
+    type(particle_t), intent(in) :: p
+    type(domain_t), intent(in) :: dom
+    integer, intent(out) :: i1, i2, j1, j2
+    i1 = max(1, floor(p%x - p%r) - 2)
+    i2 = min(dom%nx, ceiling(p%x + p%r) + 2)
+    j1 = max(1, floor(p%y - p%r) - 2 - dom%y0)
+    j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
+  end subroutine box
+
+  !> The particle index at each node of the slab (0 in the fluid), for output.
+  subroutine particles_solid_field(ps, dom, id)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(out) :: id(:, :)
+    integer :: k, i, j
+    id = 0.0_wp
+    do k = 1, ps%n
+      do j = 1, dom%nyl
+        do i = 1, dom%nx
+          if (inside(ps%p(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = k
+        end do
+      end do
+    end do
+  end subroutine particles_solid_field
+
+end module dkt_particles
