@@ -1,7 +1,7 @@
 !> Resolved circular particles (SPEC §3): boundary links with the exact circle intersection,
 !> curved bounce-back (E6: halfway, Yu, BFL), momentum exchange (E7, and the Galilean-invariant
-!> variant), Newton–Euler (E8) with gravity and buoyancy (E9) and the Wan–Turek short-range
-!> forces (E10–E11).
+!> variant), Newton–Euler (E8) with gravity and buoyancy (E9); the short-range forces
+!> (E10–E11) come from dkt_collisions.
 !>
 !> Lattice units throughout: node (i, j) of global row j sits at (i - 1/2, j - 1/2), the side
 !> walls at x = 0 and nx. Every rank keeps the state of every particle and integrates it;
@@ -16,6 +16,7 @@ module dkt_particles
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t
+  use dkt_collisions, only: collision_forces
   implicit none
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
@@ -308,12 +309,15 @@ contains
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
     type(particle_t), allocatable :: old(:)
-    real(wp) :: h, ax, ay, gx, gy
+    real(wp) :: h, ax, ay, gx, gy, cx(ps%n), cy(ps%n)
     integer :: k, s
     allocate (old, source=ps%p)
     h = 1.0_wp/ps%substeps
     do s = 1, ps%substeps
-      call collision_forces(ps, dom, walls_y)
+      call collision_forces(ps%p%x, ps%p%y, ps%p%r, real(dom%nx, wp), real(dom%ny, wp), &
+                            walls_y, ps%stiffness, ps%stiffness_overlap, ps%range, cx, cy)
+      ps%p%cx = cx
+      ps%p%cy = cy
       do k = 1, ps%n
         associate (p => ps%p(k))
           select case (p%motion)
@@ -338,64 +342,6 @@ contains
     end do
     call refill(ps, old, dom, f)
   end subroutine particles_move
-
-  !> E10–E11 (Wan & Turek 2006) between pairs and against the side walls (and closed ends).
-  subroutine collision_forces(ps, dom, walls_y)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    logical, intent(in) :: walls_y
-    integer :: a, b
-    real(wp) :: fx, fy
-    do a = 1, ps%n
-      ps%p(a)%cx = 0.0_wp
-      ps%p(a)%cy = 0.0_wp
-    end do
-    do a = 1, ps%n
-      do b = a + 1, ps%n
-        call repel(ps%p(a)%x, ps%p(a)%y, ps%p(b)%x, ps%p(b)%y, ps%p(a)%r + ps%p(b)%r, &
-                   ps%stiffness, ps%stiffness_overlap, ps%range, fx, fy)
-        ps%p(a)%cx = ps%p(a)%cx + fx
-        ps%p(a)%cy = ps%p(a)%cy + fy
-        ps%p(b)%cx = ps%p(b)%cx - fx
-        ps%p(b)%cy = ps%p(b)%cy - fy
-      end do
-      associate (p => ps%p(a))
-        ! E11: the mirror particle across each wall, stiffness halved
-        call wall(-p%x, p%y)
-        call wall(2.0_wp*dom%nx - p%x, p%y)
-        if (walls_y) then
-          call wall(p%x, -p%y)
-          call wall(p%x, 2.0_wp*dom%ny - p%y)
-        end if
-      end associate
-    end do
-  contains
-    subroutine wall(mx, my)
-      real(wp), intent(in) :: mx, my
-      real(wp) :: wx, wy
-      call repel(ps%p(a)%x, ps%p(a)%y, mx, my, 2.0_wp*ps%p(a)%r, 0.5_wp*ps%stiffness, &
-                 0.5_wp*ps%stiffness_overlap, ps%range, wx, wy)
-      ps%p(a)%cx = ps%p(a)%cx + wx
-      ps%p(a)%cy = ps%p(a)%cy + wy
-    end subroutine wall
-  end subroutine collision_forces
-
-  !> E10 on the first of two disks whose radii add to rsum.
-  pure subroutine repel(xa, ya, xb, yb, rsum, eps, eps_overlap, range, fx, fy)
-    real(wp), intent(in) :: xa, ya, xb, yb, rsum, eps, eps_overlap, range
-    real(wp), intent(out) :: fx, fy
-    real(wp) :: d, c
-    d = sqrt((xa - xb)**2 + (ya - yb)**2)
-    if (d > rsum + range) then
-      c = 0.0_wp
-    else if (d >= rsum) then
-      c = (rsum + range - d)**2/eps
-    else
-      c = (rsum - d)/eps_overlap
-    end if
-    fx = (xa - xb)*c
-    fy = (ya - yb)*c
-  end subroutine repel
 
   !> Nodes inside a particle's old disk and outside every new one become fluid: equilibrium at
   !! the wall velocity there with the mean density of their fluid neighbours.

@@ -7,3 +7,4 @@ dkt_add_pytest(NAME decomposition_bitwise FILE tests/test_decomposition.py LABEL
   PROCESSORS 3 TIMEOUT 600)
 dkt_add_pytest(NAME particles FILE tests/test_particles.py LABELS regression mpi PROCESSORS 3
   TIMEOUT 1500)
+dkt_add_fortran_test(NAME test_collisions SOURCES test_collisions.f90 LABELS unit NO_MPIEXEC)

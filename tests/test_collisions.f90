@@ -1,0 +1,72 @@
+!> Unit tests of the Wan–Turek repulsion (SPEC E10–E11):
+!>  - no force beyond R_i + R_j + xi; equal and opposite forces along the line of centres;
+!>  - inside the range the force is (X_i - X_j)(R_i + R_j + xi - d)^2/eps_p;
+!>  - overlapping disks: (X_i - X_j)(R_i + R_j - d)/eps'_p;
+!>  - a wall acts as the mirror particle with half the stiffness (E11): the range test is on
+!>    d' - 2R, twice the gap to the wall.
+program test_collisions
+  use dkt_kinds, only: wp
+  use dkt_collisions, only: collision_forces
+  implicit none
+  integer :: passed = 0, failed = 0
+  real(wp) :: cx(2), cy(2), x(2), y(2), r(2)
+  real(wp), parameter :: eps = 2.0_wp, eps_ov = 0.5_wp, xi = 1.0_wp, big = 1.0e6_wp
+
+  r = [5.0_wp, 3.0_wp]
+  ! far apart, far from the walls (width and height huge)
+  x = [100.0_wp, 109.5_wp]
+  y = [200.0_wp, 200.0_wp]
+  call collision_forces(x, y, r, big, big, .true., eps, eps_ov, xi, cx, cy)
+  call check('no force beyond R1 + R2 + xi', all([cx, cy] == 0.0_wp), maxval(abs([cx, cy])))
+
+  ! gap 0.4 inside the range along x: |F| = d (xi - gap)^2 / eps
+  x = [100.0_wp, 108.4_wp]
+  call collision_forces(x, y, r, big, big, .true., eps, eps_ov, xi, cx, cy)
+  call check('range force (X1 - X2)(R1 + R2 + xi - d)^2/eps_p', &
+             abs(cx(1) - (-8.4_wp*0.6_wp**2/eps)) < 1.0e-12_wp, cx(1))
+  call check('equal and opposite, along the line of centres', &
+             cx(1) == -cx(2) .and. all(cy == 0.0_wp), cx(1) + cx(2))
+
+  ! overlap 0.5: |F| = d (R1 + R2 - d)/eps'
+  x = [100.0_wp, 107.5_wp]
+  call collision_forces(x, y, r, big, big, .true., eps, eps_ov, xi, cx, cy)
+  call check('overlap force (X1 - X2)(R1 + R2 - d)/eps''_p', &
+             abs(cx(1) - (-7.5_wp*0.5_wp/eps_ov)) < 1.0e-12_wp, cx(1))
+
+  ! a disk 5.3 from the left wall: mirror at -5.3, d' = 10.6, 2R = 10, so d' - 2R = 0.6 (twice
+  ! the gap to the wall) is inside the range
+  call collision_forces([5.3_wp], [200.0_wp], [5.0_wp], big, big, .true., eps, eps_ov, xi, &
+                        cx(1:1), cy(1:1))
+  call check('wall: mirror particle with half the stiffness (E11)', &
+             abs(cx(1) - 10.6_wp*0.4_wp**2/(0.5_wp*eps)) < 1.0e-12_wp, cx(1))
+  ! 5.5 from the wall: d' - 2R = 1 = xi, the edge of the range
+  call collision_forces([5.5_wp], [200.0_wp], [5.0_wp], big, big, .true., eps, eps_ov, xi, &
+                        cx(1:1), cy(1:1))
+  call check('wall: no force once d'' - 2R reaches xi', cx(1) == 0.0_wp, cx(1))
+  ! the same disk near the bottom end: felt only when the ends are walls
+  call collision_forces([200.0_wp], [5.3_wp], [5.0_wp], big, big, .false., eps, eps_ov, xi, &
+                        cx(1:1), cy(1:1))
+  call check('open ends exert no wall force', cy(1) == 0.0_wp, cy(1))
+  call collision_forces([200.0_wp], [5.3_wp], [5.0_wp], big, big, .true., eps, eps_ov, xi, &
+                        cx(1:1), cy(1:1))
+  call check('closed ends push the disk back', cy(1) > 0.0_wp, cy(1))
+
+  write (*, '(i0,a,i0,a)') passed, ' passed, ', failed, ' failed'
+  if (failed > 0) error stop 1
+
+contains
+
+  subroutine check(name, ok, detail)
+    character(len=*), intent(in) :: name
+    logical, intent(in) :: ok
+    real(wp), intent(in) :: detail
+    if (ok) then
+      passed = passed + 1
+      write (*, '(a,a,es11.3)') 'PASS ', name, detail
+    else
+      failed = failed + 1
+      write (*, '(a,a,es11.3)') 'FAIL ', name, detail
+    end if
+  end subroutine check
+
+end program test_collisions
