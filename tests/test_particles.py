@@ -3,13 +3,14 @@ proves. Reference values are the published ones of SPEC §8, not earlier outputs
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 
-from dkt_run import run
+from dkt_run import run, run_args
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -37,7 +38,8 @@ def test_fixed_cylinder_drag_and_lift_match_schafer_turek_2d1(tmp_path: Path) ->
     assert abs(cl - 0.0106) < 0.10 * 0.0106, f"C_L = {cl:.5f}"
 
 
-REFDATA = ROOT.parent / "shared" / "refdata"
+# the digitised curves live in shared/refdata beside the repository (DKTLBM_REFDATA overrides)
+REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT.parent / "shared" / "refdata"))
 
 
 def koblitz(name: str) -> np.ndarray:
@@ -181,3 +183,31 @@ def test_particle_series_are_bitwise_identical_on_1_2_and_3_ranks(
     for ranks in (2, 3):
         for name, ref in results[1].items():
             assert np.array_equal(ref, results[ranks][name]), f"{name} differs on {ranks} ranks"
+
+
+def test_slabs_thinner_than_a_particle_are_refused_with_the_largest_rank_count(
+    tmp_path: Path,
+) -> None:
+    """DESIGN "Particles across slabs": a slab must hold the largest particle plus its stencil
+    (diameter + 4 rows). A 0.6 cm box at dx = 0.02 has 30 rows; the 12.5-spacing disk needs 17
+    per slab, so 2 ranks are refused, the message names 1 as the largest rank count, and
+    nothing is written."""
+    out = tmp_path / "thin"
+    args = [
+        str(ROOT / "input" / "single.nml"),
+        "--set",
+        "lbm.dx=0.02",
+        "--set",
+        "domain.height=0.6",
+        "--set",
+        "particles.y(1)=0.3",
+        "--set",
+        "run.t_end=0.05",
+        "--set",
+        f"output.dir={out}",
+    ]
+    proc = run_args(args, ranks=2, timeout=30)
+    assert proc.returncode != 0
+    assert "at most 1 ranks" in proc.stderr, proc.stderr
+    assert not out.exists()
+    assert run_args(args, ranks=1, timeout=120).returncode == 0
