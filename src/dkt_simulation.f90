@@ -191,6 +191,15 @@ contains
       write (line, '(a,es11.4,a,es11.4,a,es11.4)') 'velocity scale ', &
         lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
       call log_line(trim(line))
+      if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
+        ! measured: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
+        ! 20, 30 and 40 spacings per diameter; with s_q = 1.2 it ran through
+        write (line, '(a,f6.3,a,f6.4,a)') 'the heat-flux rate s_q = ', sim%coll%s_q, &
+          ' (tau = ', lp%tau, ') leaves the q moments almost undamped; with moving '// &
+          'particles such runs were measured unstable. Set lbm.s_q = 1.2 (walls then sit '// &
+          'slightly off half-way), or raise lbm.tau'
+        call warn(trim(line))
+      end if
       if (lp%mach > cfg%run%mach_limit) then
         write (line, '(a,es11.4,a,es11.4,a)') 'the expected Mach number ', lp%mach, &
           ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '// &
