@@ -21,7 +21,8 @@ module dkt_particles
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
             particles_interior, particles_reduce_forces, particles_move, particles_solid_field, &
-            MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
+            particles_stable_substeps, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
+            BB_HALFWAY, BB_YU, BB_BFL
 
   integer, parameter :: MOTION_FREE = 1, MOTION_FIXED = 2, MOTION_PRESCRIBED = 3
   integer, parameter :: BB_HALFWAY = 1, BB_YU = 2, BB_BFL = 3
@@ -94,6 +95,36 @@ contains
     allocate (ps%rows(3, dom%nyl, ps%n))
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0))
   end subroutine particles_init
+
+  !> The fewest particle sub-steps per fluid step for which the explicit update (E8) of the
+  !! stiffest contact (E10–E11) stays stable: omega h <= 1, with omega^2 = k / m for the
+  !! spring constant k of the overlap or range law at contact and the reduced mass m.
+  pure integer function particles_stable_substeps(ps) result(n)
+    type(particles_t), intent(in) :: ps
+    real(wp) :: omega, k, m
+    integer :: a, b
+    omega = 0.0_wp
+    do a = 1, ps%n
+      if (ps%p(a)%motion /= MOTION_FREE) cycle
+      ! the wall: the mirror particle at d = 2 r, stiffness halved (E11)
+      k = spring(2.0_wp*ps%p(a)%r, 0.5_wp*ps%stiffness, 0.5_wp*ps%stiffness_overlap)
+      omega = max(omega, sqrt(k/ps%p(a)%mass))
+      do b = 1, ps%n
+        if (b == a) cycle
+        k = spring(ps%p(a)%r + ps%p(b)%r, ps%stiffness, ps%stiffness_overlap)
+        m = ps%p(a)%mass
+        if (ps%p(b)%motion == MOTION_FREE) m = m*ps%p(b)%mass/(m + ps%p(b)%mass)
+        omega = max(omega, sqrt(k/m))
+      end do
+    end do
+    n = max(1, ceiling(omega))
+  contains
+    !> dF/dgap of E10 at contact: d/eps' in the overlap, up to 2 d xi/eps in the range
+    pure real(wp) function spring(d, eps, eps_overlap)
+      real(wp), intent(in) :: d, eps, eps_overlap
+      spring = max(d/eps_overlap, 2.0_wp*d*ps%range/eps)
+    end function spring
+  end function particles_stable_substeps
 
   !> Whether the point (px, py) lies strictly inside particle k.
   pure logical function inside(p, px, py)

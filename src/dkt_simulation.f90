@@ -16,7 +16,8 @@ module dkt_simulation
   use dkt_fields, only: macroscopic, vorticity
   use dkt_particles, only: particles_t, particles_init, particles_find_links, particles_bounce, &
                            particles_interior, particles_reduce_forces, particles_move, &
-                           particles_solid_field, MOTION_FREE, MOTION_FIXED, &
+                           particles_solid_field, particles_stable_substeps, MOTION_FREE, &
+                           MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_diagnostics, only: guard_check
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
@@ -106,6 +107,7 @@ contains
     integer, allocatable :: motion(:)
     real(wp) :: dx, dt, rho_f
     integer :: scheme
+    character(len=256) :: line
     n = sim%cfg%particles%count
     dx = sim%lp%dx
     dt = sim%lp%dt
@@ -133,6 +135,15 @@ contains
                           c%substeps)
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
+    ! SPEC §4: a stiff contact law is sub-stepped, not softened, and the log says so
+    if (particles_stable_substeps(sim%parts) > sim%parts%substeps) then
+      write (line, '(a,i0,a,i0,a)') 'collision stiffness: the explicit particle update needs ', &
+        particles_stable_substeps(sim%parts), ' sub-steps per fluid step to stay stable; '// &
+        'using them instead of collision.substeps = ', sim%parts%substeps, &
+        ' (the contact law is unchanged)'
+      sim%parts%substeps = particles_stable_substeps(sim%parts)
+      call log_line(trim(line))
+    end if
     call particles_find_links(sim%parts, sim%dom)
     call particles_interior(sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
