@@ -4,18 +4,20 @@
 !> (E10–E11) come from dkt_collisions.
 !>
 !> Lattice units throughout: node (i, j) of global row j sits at (i - 1/2, j - 1/2), the side
-!> walls at x = 0 and nx. Every rank keeps the state of every particle and integrates it;
-!> the force on a particle is summed link by link within a row and then row by row in global
-!> order, so every rank gets the same bits whatever the number of ranks.
+!> walls at x = 0 and nx. A particle is owned by the rank whose rows hold its centre; every
+!> rank keeps a ghost copy of every particle and computes the links in its own rows. The force
+!> is summed link by link within a row, the row sums go to the owner, which adds them in
+!> global row order and integrates the motion, and the new state goes back to every rank: the
+!> trajectory has the same bits whatever the number of ranks (DESIGN "Particles across slabs").
 !>
 !> Interior nodes are not fluid: after each sweep they hold the equilibrium at the local
 !> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the
 !> wall velocity and the mean density of its fluid neighbours.
 module dkt_particles
-  use mpi_f08, only: MPI_Allgatherv, MPI_Allgather, MPI_INTEGER
+  use mpi_f08, only: MPI_Gatherv, MPI_Bcast
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
-  use dkt_domain, only: domain_t
+  use dkt_domain, only: domain_t, domain_rows_for
   use dkt_collisions, only: collision_forces
   implicit none
   private
@@ -276,31 +278,43 @@ contains
     end do
   end subroutine particles_bounce
 
-  !> Sum the per-row forces of all ranks in global row order, so the total is the same on any
-  !! number of ranks, and store it in each particle.
+  !> The rank that owns a particle: the one whose rows hold its centre (node row j covers
+  !! y in [j - 1, j)). Every rank computes the same answer from the same state.
+  integer function owner_of(p, dom) result(r)
+    type(particle_t), intent(in) :: p
+    type(domain_t), intent(in) :: dom
+    integer :: jg, y0, nyl
+    jg = min(max(floor(p%y) + 1, 1), dom%ny)
+    do r = 0, dom%nranks - 1
+      call domain_rows_for(dom%ny, dom%nranks, r, y0, nyl)
+      if (jg > y0 .and. jg <= y0 + nyl) return
+    end do
+    r = dom%nranks - 1
+  end function owner_of
+
+  !> E7 totals: every rank sends its per-row sums to the particle's owner, which adds them in
+  !! global row order, so the total has the same bits on any number of ranks.
   subroutine particles_reduce_forces(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    real(wp), allocatable :: all(:, :, :), mine(:, :, :)
-    integer, allocatable :: counts(:), displs(:)
-    integer :: k, r, j
+    real(wp), allocatable :: all(:, :)
+    integer :: counts(dom%nranks), displs(dom%nranks)
+    integer :: k, r, j, own, y0, nyl
     real(wp) :: s(3)
-    allocate (counts(dom%nranks), displs(dom%nranks))
-    call MPI_Allgather(3*ps%n*dom%nyl, 1, MPI_INTEGER, counts, 1, MPI_INTEGER, dom%comm)
-    displs(1) = 0
-    do r = 2, dom%nranks
-      displs(r) = displs(r - 1) + counts(r - 1)
+    do r = 0, dom%nranks - 1
+      call domain_rows_for(dom%ny, dom%nranks, r, y0, nyl)
+      counts(r + 1) = 3*nyl
+      displs(r + 1) = 3*y0
     end do
-    ! rank-major layout (3, n, rows) so each rank's block is contiguous
-    allocate (mine(3, ps%n, dom%nyl), all(3, ps%n, dom%ny))
+    allocate (all(3, dom%ny))
     do k = 1, ps%n
-      mine(:, k, :) = ps%rows(:, :, k)
-    end do
-    call MPI_Allgatherv(mine, 3*ps%n*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, dom%comm)
-    do k = 1, ps%n
+      own = owner_of(ps%p(k), dom)
+      call MPI_Gatherv(ps%rows(:, :, k), 3*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, own, &
+                       dom%comm)
+      if (dom%rank /= own) cycle
       s = 0.0_wp
       do j = 1, dom%ny
-        s = s + all(:, k, j)
+        s = s + all(:, j)
       end do
       ps%p(k)%fx = s(1)
       ps%p(k)%fy = s(2)
@@ -332,44 +346,59 @@ contains
     end do
   end subroutine particles_interior
 
-  !> E8–E11: advance free particles by one fluid step (in substeps for the collision forces),
-  !! prescribed ones by their given velocity; then refill the nodes they uncovered.
+  !> E8–E11: each owner advances its particles by one fluid step (in sub-steps for the contact
+  !! forces, the other particles held at their start-of-step positions), prescribed ones by
+  !! their given velocity; the owners then send the new states to every rank, which keeps a
+  !! ghost copy of every particle. A particle whose centre crossed into another slab has a new
+  !! owner from the next step on. Last, the nodes the particles uncovered are refilled.
   subroutine particles_move(ps, dom, f, walls_y)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
     type(particle_t), allocatable :: old(:)
-    real(wp) :: h, ax, ay, gx, gy, cx(ps%n), cy(ps%n)
-    integer :: k, s
+    real(wp) :: h, ax, ay, gy, cx(ps%n), cy(ps%n), xs(ps%n), ys(ps%n), state(10)
+    integer :: k, s, own
     allocate (old, source=ps%p)
     h = 1.0_wp/ps%substeps
-    do s = 1, ps%substeps
-      call collision_forces(ps%p%x, ps%p%y, ps%p%r, real(dom%nx, wp), real(dom%ny, wp), &
-                            walls_y, ps%stiffness, ps%stiffness_overlap, ps%range, cx, cy)
-      ps%p%cx = cx
-      ps%p%cy = cy
-      do k = 1, ps%n
+    do k = 1, ps%n
+      own = owner_of(old(k), dom)
+      if (own == dom%rank) then
         associate (p => ps%p(k))
-          select case (p%motion)
-          case (MOTION_FREE)
-            ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
-            gx = 0.0_wp
-            gy = -(p%density_ratio - 1.0_wp)*pi*p%r**2*ps%gravity
-            ax = (p%fx + p%cx + gx)/p%mass
-            ay = (p%fy + p%cy + gy)/p%mass
-            ! E8: X += U h + a h^2 / 2, U += a h, Omega += T/I h
-            p%x = p%x + p%u*h + 0.5_wp*ax*h*h
-            p%y = p%y + p%v*h + 0.5_wp*ay*h*h
-            p%u = p%u + ax*h
-            p%v = p%v + ay*h
-            p%omega = p%omega + p%torque/p%inertia*h
-          case (MOTION_PRESCRIBED)
-            p%x = p%x + p%u*h
-            p%y = p%y + p%v*h
-          end select
+          do s = 1, ps%substeps
+            xs = old%x
+            ys = old%y
+            xs(k) = p%x
+            ys(k) = p%y
+            call collision_forces(xs, ys, old%r, real(dom%nx, wp), real(dom%ny, wp), walls_y, &
+                                  ps%stiffness, ps%stiffness_overlap, ps%range, cx, cy)
+            p%cx = cx(k)
+            p%cy = cy(k)
+            select case (p%motion)
+            case (MOTION_FREE)
+              ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
+              gy = -(p%density_ratio - 1.0_wp)*pi*p%r**2*ps%gravity
+              ax = (p%fx + p%cx)/p%mass
+              ay = (p%fy + p%cy + gy)/p%mass
+              ! E8: X += U h + a h^2 / 2, U += a h, Omega += T/I h
+              p%x = p%x + p%u*h + 0.5_wp*ax*h*h
+              p%y = p%y + p%v*h + 0.5_wp*ay*h*h
+              p%u = p%u + ax*h
+              p%v = p%v + ay*h
+              p%omega = p%omega + p%torque/p%inertia*h
+            case (MOTION_PRESCRIBED)
+              p%x = p%x + p%u*h
+              p%y = p%y + p%v*h
+            end select
+          end do
+          state = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
         end associate
-      end do
+      end if
+      call MPI_Bcast(state, size(state), mpi_wp, own, dom%comm)
+      associate (p => ps%p(k))
+        p%x = state(1); p%y = state(2); p%u = state(3); p%v = state(4); p%omega = state(5)
+        p%fx = state(6); p%fy = state(7); p%torque = state(8); p%cx = state(9); p%cy = state(10)
+      end associate
     end do
     call refill(ps, old, dom, f)
   end subroutine particles_move

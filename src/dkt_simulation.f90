@@ -394,11 +394,10 @@ contains
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     call particles_interior(sim%parts, sim%dom, sim%f_next)
     call particles_reduce_forces(sim%parts, sim%dom)
-    if (sim%particles_move) then
-      call particles_move(sim%parts, sim%dom, sim%f_next, &
-                          sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
-      call particles_find_links(sim%parts, sim%dom)
-    end if
+    ! the owners move their particles (fixed ones stay) and send every rank the new state
+    call particles_move(sim%parts, sim%dom, sim%f_next, &
+                        sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
+    if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
 
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
