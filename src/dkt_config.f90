@@ -5,7 +5,7 @@
 !> `build_registry` adds unit, range and meaning to each component; parsing, range checks,
 !> `--print-defaults` and input/README.md (through tests/test_input_readme.py) all come from it.
 module dkt_config
-  use dkt_kinds, only: wp, cs2
+  use dkt_kinds, only: wp, cs2, pi
   use dkt_mrt, only: e3_heat_flux_rate
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
@@ -587,7 +587,8 @@ contains
   function lattice_from(c) result(lp)
     type(config_t), intent(in) :: c
     type(lattice_params_t) :: lp
-    real(wp) :: nu, s_nu, s_q, width_lb
+    real(wp) :: nu, s_nu, s_q, width_lb, u_g
+    integer :: k
     nu = c%fluid%viscosity/c%fluid%density ! cm^2/s
     lp%dx = c%lbm%dx
     lp%tau = c%lbm%tau
@@ -618,6 +619,17 @@ contains
     width_lb = real(lp%nx, wp)
     lp%u_scale_lb = max(abs(lp%u_in_lb), lp%u_init_lb, &
                         norm2(lp%force_lb)*width_lb**2/(8.0_wp*lp%nu_lb))
+    ! particles: the given velocities, and for free ones the gravitational velocity scale
+    ! sqrt(pi D/2 |rho_p/rho_f - 1| g) (of the order of the settling speed)
+    do k = 1, c%particles%count
+      associate (p => c%particles)
+        u_g = 0.0_wp
+        if (p%motion(k) == 'free') &
+          u_g = sqrt(0.5_wp*pi*p%diameter(k)*abs(p%density(k)/c%fluid%density - 1.0_wp)* &
+                     p%gravity)
+        lp%u_scale_lb = max(lp%u_scale_lb, max(hypot(p%u(k), p%v(k)), u_g)*lp%dt/lp%dx)
+      end associate
+    end do
     lp%mach = lp%u_scale_lb/sqrt(cs2)
     lp%reynolds = (lp%u_scale_lb*lp%dx/lp%dt)*c%domain%width/nu
     lp%particles_on = c%particles%count > 0

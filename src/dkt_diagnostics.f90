@@ -33,7 +33,7 @@ contains
         call node_moments(f(x, j, :), force, rho, ux, uy)
         if (.not. (all(ieee_is_finite(f(x, j, :))) .and. ieee_is_finite(ux) .and. &
                    ieee_is_finite(uy))) then
-          write (msg, '(a,i0,a,es11.4,a,2(i0,a),2(es11.4,a),a)') 'non-finite value at step ', &
+          write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') 'non-finite value at step ', &
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &
             ', ', (dom%y0 + j - 0.5_wp)*dx, ') cm. The run became unstable: increase lbm.tau,', &
             ' refine lbm.dx (smaller dt), or lower the velocity scale'
@@ -41,7 +41,7 @@ contains
         end if
         ma = sqrt((ux*ux + uy*uy)/cs2)
         if (ma > mach_limit) then
-          write (msg, '(a,es11.4,a,es11.4,a,i0,a,es11.4,a,2(i0,a),2(es11.4,a),a)') &
+          write (msg, '(a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') &
             'Mach number ', ma, ' above run.mach_limit = ', mach_limit, ' at step ', step, &
             ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, ', ', &
             (dom%y0 + j - 0.5_wp)*dx, ') cm. Refine lbm.dx or lower lbm.tau (both shrink dt', &

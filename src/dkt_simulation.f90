@@ -199,7 +199,7 @@ contains
       s = collision_describe(sim%coll)
       write (line, '(a,9(1x,f7.4))') 'rates s_0..s_8 (rho e eps jx qx jy qy pxx pxy):', s
       call log_line(trim(line))
-      write (line, '(a,es11.4,a,es11.4,a,es11.4)') 'velocity scale ', &
+      write (line, '(a,es12.4e3,a,es12.4e3,a,es12.4e3)') 'velocity scale ', &
         lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
       call log_line(trim(line))
       if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
@@ -212,7 +212,7 @@ contains
         call warn(trim(line))
       end if
       if (lp%mach > cfg%run%mach_limit) then
-        write (line, '(a,es11.4,a,es11.4,a)') 'the expected Mach number ', lp%mach, &
+        write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
           ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '// &
           'Refine lbm.dx or lower lbm.tau (both shrink dt), or lower the velocity scale'
         call warn(trim(line))
