@@ -6,9 +6,9 @@
 !>    d' - 2R, twice the gap to the wall.
 program test_collisions
   use dkt_kinds, only: wp
+  use dkt_check, only: check, finish
   use dkt_collisions, only: collision_forces
   implicit none
-  integer :: passed = 0, failed = 0
   real(wp) :: cx(2), cy(2), x(2), y(2), r(2)
   real(wp), parameter :: eps = 2.0_wp, eps_ov = 0.5_wp, xi = 1.0_wp, big = 1.0e6_wp
 
@@ -51,22 +51,6 @@ program test_collisions
                         cx(1:1), cy(1:1))
   call check('closed ends push the disk back', cy(1) > 0.0_wp, cy(1))
 
-  write (*, '(i0,a,i0,a)') passed, ' passed, ', failed, ' failed'
-  if (failed > 0) error stop 1
-
-contains
-
-  subroutine check(name, ok, detail)
-    character(len=*), intent(in) :: name
-    logical, intent(in) :: ok
-    real(wp), intent(in) :: detail
-    if (ok) then
-      passed = passed + 1
-      write (*, '(a,a,es11.3)') 'PASS ', name, detail
-    else
-      failed = failed + 1
-      write (*, '(a,a,es11.3)') 'FAIL ', name, detail
-    end if
-  end subroutine check
+  call finish()
 
 end program test_collisions

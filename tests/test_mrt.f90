@@ -6,11 +6,11 @@
 !>  - MRT with all rates equal to 1/tau gives the BGK sweep (E4) to round-off.
 program test_mrt
   use dkt_kinds, only: wp
+  use dkt_check, only: check, finish
   use dkt_lattice, only: ex, ey, w, opp, moment_matrix, moment_norm, equilibrium
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide, &
                      e3_heat_flux_rate
   implicit none
-  integer :: passed = 0, failed = 0
   integer, parameter :: nx = 7, nyl = 5, nxp = nx + 2
 
   call test_inverse()
@@ -21,23 +21,9 @@ program test_mrt
   call test_mrt_equal_rates_is_bgk(.true.)
   call test_opposites()
 
-  write (*, '(i0,a,i0,a)') passed, ' passed, ', failed, ' failed'
-  if (failed > 0) error stop 1
+  call finish()
 
 contains
-
-  subroutine check(name, ok, detail)
-    character(len=*), intent(in) :: name
-    logical, intent(in) :: ok
-    real(wp), intent(in) :: detail
-    if (ok) then
-      passed = passed + 1
-      write (*, '(a,a,es10.2,a)') 'PASS ', name, detail, ''
-    else
-      failed = failed + 1
-      write (*, '(a,a,es10.2,a)') 'FAIL ', name, detail, ''
-    end if
-  end subroutine check
 
   function minv() result(mi)
     real(wp) :: mi(0:8, 0:8)
