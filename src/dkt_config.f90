@@ -361,6 +361,14 @@ contains
               '; set all three to ''periodic'''
         return
       end if
+      ! a particle would leave through a periodic side or end: not supported yet
+      if (c%particles%count > 0 .and. any([d%sides, d%lower] == 'periodic')) then
+        err = src('count', 'particles')//': &particles count = '// &
+              val('particles', 'count')//' with &domain sides = '//val('domain', 'sides')// &
+              ', lower = '//val('domain', 'lower')//': particles need walls or open ends; '// &
+              'periodic sides or ends are for particle-free scenes'
+        return
+      end if
       call check_cells('width', 'nx', d%width)
       if (len(err) > 0) return
       call check_cells('height', 'ny', d%height)
@@ -523,9 +531,8 @@ contains
       err = head//what//'; allowed: '//allowed//' (the centre at least one radius from a wall)'
     end subroutine check_position
 
-    !> No two particles overlap at t = 0: the distance of their centres, across a periodic
-    !! boundary if the shorter way, is at least the sum of their radii (E10 would otherwise
-    !! start with its overlap branch). Touching is allowed, to within round-off (CONTACT_TOL),
+    !> No two particles overlap at t = 0: the distance of their centres is at least the sum of
+    !! their radii (E10 would otherwise start with its overlap branch). Touching is allowed, to within round-off (CONTACT_TOL),
     !! so that centres typed exactly one contact distance apart are accepted.
     subroutine check_contacts()
       real(wp) :: gx, gy, dist, contact
@@ -535,9 +542,6 @@ contains
           do m = k + 1, p%count
             gx = p%x(m) - p%x(k)
             gy = p%y(m) - p%y(k)
-            if (c%domain%sides == 'periodic') gx = gx - c%domain%width*anint(gx/c%domain%width)
-            if (c%domain%lower == 'periodic') &
-              gy = gy - c%domain%height*anint(gy/c%domain%height)
             dist = hypot(gx, gy)
             contact = 0.5_wp*(p%diameter(k) + p%diameter(m))
             if (dist < contact*(1.0_wp - CONTACT_TOL)) then

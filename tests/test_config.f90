@@ -256,7 +256,7 @@ contains
     type(config_t) :: cfg, back
     character(len=:), allocatable :: text, text2, err
     call load_ok('a configuration of non-default values', &
-                 '&domain width = 1.0, height = 3.0, sides = ''periodic'','// &
+                 '&domain width = 1.0, height = 3.0,'// &
                  ' lower = ''velocity'', upper = ''outflow'' /'//NL// &
                  '&fluid density = 1.3, viscosity = 0.035,'// &
                  ' body_force = 1.0e-20, -3.3333333333333335 /'//NL// &
@@ -576,8 +576,6 @@ contains
     ! floating point comes out one rounding below the contact distance.
     call load_ok('two particles touching', '&particles count = 2, diameter = 0.2, 0.1,'// &
                  ' x = 1, 1, y = 4.0, 3.85 /', cfg)
-    call load_ok('particles may overlap a side if the sides are periodic', &
-                 '&domain sides = ''periodic'' / &particles count = 1, x = 0.05, y = 2 /', cfg)
     call load_ok('particles may overlap an open end', '&domain upper = ''outflow'' /'// &
                  ' &particles count = 1, y = 4.95 /', cfg)
     call load_ok('a particle just clear of the wall', '&particles count = 1, x = 0.1001 /', cfg)
@@ -696,10 +694,14 @@ contains
                        '&domain width = 2.0', '0.1 < x(1) < 1.9'])
     call expect_error('error: centre outside the channel', TWO//'x(1) = -0.5 /', &
                       [character(len=40) :: '&particles x(1) = -0.5', 'outside the channel'])
-    call expect_error('error: centre outside a periodic channel', &
-                      '&domain sides = ''periodic'' / '//TWO//'x(2) = 2.5 /', &
-                      [character(len=40) :: '&particles x(2) = 2.5', 'outside the channel', &
-                       '0.0 <= x(2) <= 2.0'])
+    call expect_error('error: particles in a channel with periodic sides', &
+                      '&domain sides = ''periodic'' / '//TWO//'x(2) = 0.5 /', &
+                      [character(len=40) :: '&particles count = 2', 'sides = ''periodic''', &
+                       'walls or open ends'])
+    call expect_error('error: particles in a channel with periodic ends', &
+                      '&domain lower = ''periodic'', upper = ''periodic'' / '//TWO//'/', &
+                      [character(len=40) :: '&particles count = 2', 'lower = ''periodic''', &
+                       'walls or open ends'])
     call expect_error('error: particle overlaps the lower wall end', TWO//'y(1) = 0.05 /', &
                       [character(len=40) :: '&particles y(1) = 0.05', 'wall at y = 0', &
                        'lower = ''wall''', '0.1 < y(1) < 4.9'])
@@ -729,11 +731,6 @@ contains
                       ' diameter = 0.2, 0.2, 0.1 /', &
                       [character(len=40) :: 'particles 1 and 3 overlap', 'x(3) = 1.1', &
                        'diameter(3) = 0.1', '= 0.15'])
-    call expect_error('error: particles overlap across periodic sides', &
-                      '&domain sides = ''periodic'' / &particles count = 2,'// &
-                      ' x = 0.05, 1.95, y = 2, 2 /', &
-                      [character(len=40) :: 'particles 1 and 2 overlap', 'x(1) = 0.05', &
-                       'x(2) = 1.95', 'distance of the centres 0.1'])
 
     ! Resolution: at least 4 cells per diameter.
     call expect_error('error: fewer than 4 cells per diameter', TWO//'diameter(2) = 0.012 /', &
