@@ -532,8 +532,9 @@ contains
     end subroutine check_position
 
     !> No two particles overlap at t = 0: the distance of their centres is at least the sum of
-    !! their radii (E10 would otherwise start with its overlap branch). Touching is allowed, to within round-off (CONTACT_TOL),
-    !! so that centres typed exactly one contact distance apart are accepted.
+    !! their radii (E10 would otherwise start with its overlap branch). Touching is allowed, to
+    !! within round-off (CONTACT_TOL), so that centres typed exactly one contact distance apart
+    !! are accepted.
     subroutine check_contacts()
       real(wp) :: gx, gy, dist, contact
       integer :: k, m
