@@ -128,6 +128,15 @@ contains
     end function spring
   end function particles_stable_substeps
 
+  !> The rigid-body velocity U + Omega x (x - X) of particle p at the point (px, py).
+  pure subroutine surface_velocity(p, px, py, ux, uy)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    real(wp), intent(out) :: ux, uy
+    ux = p%u - p%omega*(py - p%y)
+    uy = p%v + p%omega*(px - p%x)
+  end subroutine surface_velocity
+
   !> Whether the point (px, py) lies strictly inside particle k.
   pure logical function inside(p, px, py)
     type(particle_t), intent(in) :: p
@@ -234,8 +243,7 @@ contains
         ! wall point and its velocity u_w = U + Omega x (x_w - X)
         xw = i - 0.5_wp + q*ex(d)
         yw = dom%y0 + j - 0.5_wp + q*ey(d)
-        uwx = p%u - p%omega*(yw - p%y)
-        uwy = p%v + p%omega*(xw - p%x)
+        call surface_velocity(p, xw, yw, uwx, uwy)
         rho = sum(f(i, j, :))
         wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
         fi = f(i, j, d)
@@ -329,7 +337,7 @@ contains
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     integer :: k, i, j, jg, i1, i2, j1, j2
-    real(wp) :: px, py
+    real(wp) :: px, py, ux, uy
     do k = 1, ps%n
       associate (p => ps%p(k))
         call box(p, dom, i1, i2, j1, j2)
@@ -338,8 +346,9 @@ contains
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            if (inside(p, px, py)) f(i, j, :) = equilibrium(1.0_wp, p%u - p%omega*(py - p%y), &
-                                                            p%v + p%omega*(px - p%x))
+            if (.not. inside(p, px, py)) cycle
+            call surface_velocity(p, px, py, ux, uy)
+            f(i, j, :) = equilibrium(1.0_wp, ux, uy)
           end do
         end do
       end associate
@@ -411,7 +420,7 @@ contains
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     integer :: k, i, j, jg, d, nf, i1, i2, j1, j2
-    real(wp) :: px, py, rho
+    real(wp) :: px, py, rho, ux, uy
     do k = 1, ps%n
       associate (o => old(k), p => ps%p(k))
         call box(o, dom, i1, i2, j1, j2)
@@ -437,7 +446,8 @@ contains
             else
               rho = 1.0_wp
             end if
-            f(i, j, :) = equilibrium(rho, p%u - p%omega*(py - p%y), p%v + p%omega*(px - p%x))
+            call surface_velocity(p, px, py, ux, uy)
+            f(i, j, :) = equilibrium(rho, ux, uy)
           end do
         end do
       end associate

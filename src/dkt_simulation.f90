@@ -415,7 +415,7 @@ contains
     allocate (v(sim%parts%n, 8))
     do k = 1, sim%parts%n
       associate (p => sim%parts%p(k))
-        v(k, :) = [(p%x - 0.0_wp)*dx, p%y*dx, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
+        v(k, :) = [p%x*dx, p%y*dx, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
                    p%fy*fu, p%torque*fu*dx]
       end associate
     end do
