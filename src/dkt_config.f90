@@ -14,7 +14,7 @@ module dkt_config
   implicit none
   private
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
-  public :: derive_lattice, config_to_namelist, config_output_dir, print_help
+  public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -40,6 +40,7 @@ module dkt_config
     real(wp) :: s_e = 1.1_wp              !! MRT energy rate (E3)
     real(wp) :: s_eps = 1.25_wp           !! MRT energy-square rate (E3)
     real(wp) :: s_q = 0.0_wp              !! MRT heat-flux rate; 0 = the E3 rule
+    real(wp) :: cells_per_diameter = 0.0_wp !! > 0: dx from the smallest particle; 0 = use dx
   end type lbm_cfg_t
 
   !> &inlet: a 'velocity' end of the channel.
@@ -71,6 +72,39 @@ module dkt_config
     character(len=16) :: motion(MAX_PARTICLES) = 'free' !! 'free', 'fixed' or 'prescribed'
     real(wp) :: gravity = 980.0_wp                      !! cm/s^2, along -y on the particles (E9)
   end type particles_cfg_t
+
+  !> &pair: the two particles of a DKT scene (SPEC §7), set by the diameter ratio and the
+  !! initial distance. When gamma > 0 it writes particles 1 (the larger, D_1) and 2 (D_1/gamma)
+  !! of &particles, both free, on the channel centreline.
+  type, public :: pair_cfg_t
+    real(wp) :: gamma = 0.0_wp              !! D_1/D_2 >= 1; 0 = no pair (&particles as given)
+    real(wp) :: d1 = 0.2_wp                 !! cm, diameter of the larger particle
+    real(wp) :: dh = 2.0_wp                 !! initial centre distance along y, in D_1
+    character(len=16) :: upper = 'larger'   !! which particle starts above: 'larger', 'smaller'
+    real(wp) :: y_upper = 15.0_wp           !! cm, y of the upper particle's centre
+    real(wp) :: x_offset = 0.001_wp         !! cm, the upper particle off the centreline
+    real(wp) :: density = 1.01_wp           !! g/cm^3, both particles
+  end type pair_cfg_t
+
+  !> &window: the computational window that follows the particles down an infinite channel
+  !! (SPEC §5). Lengths in D_1, the largest diameter.
+  type, public :: window_cfg_t
+    logical :: enabled = .false.            !! follow the particles; domain height/ends derived
+    real(wp) :: below = 10.0_wp             !! D_1 from the lowest centre down to the lower end
+    real(wp) :: above = 15.0_wp             !! D_1 from the lowest centre up to the upper end
+    real(wp) :: margin = 1.0_wp             !! D_1: a particle this close to the upper end ends
+                                            !! the run (the pair separated beyond the window)
+  end type window_cfg_t
+
+  !> &diagnostics: the thresholds of a kissing episode (SPEC §6), each the larger of a number
+  !! of lattice spacings and a fraction of D_1.
+  type, public :: diagnostics_cfg_t
+    real(wp) :: enter_cells = 0.0_wp        !! an episode starts at D_r <= this many spacings
+                                            !! (0 = collision.range + 1, just outside E10) ..
+    real(wp) :: enter_d1 = 0.05_wp          !! .. or this fraction of D_1, whichever is larger
+    real(wp) :: release_cells = 4.0_wp      !! it ends at D_r > this many spacings ..
+    real(wp) :: release_d1 = 0.25_wp        !! .. or this fraction of D_1, whichever is larger
+  end type diagnostics_cfg_t
 
   !> &coupling: how the particles and the fluid exchange momentum.
   type, public :: coupling_cfg_t
@@ -108,12 +142,18 @@ module dkt_config
   type, public :: config_t
     character(len=:), allocatable :: file !! namelist path as given
     character(len=:), allocatable :: name !! namelist basename without extension, e.g. 'case1'
+    !> the input as read (namelist text), before &pair, &window and cells_per_diameter were
+    !! turned into particles, domain and dx: reading it back gives the same configuration
+    character(len=:), allocatable :: given
     type(domain_cfg_t) :: domain
     type(fluid_cfg_t) :: fluid
     type(lbm_cfg_t) :: lbm
     type(inlet_cfg_t) :: inlet
     type(initial_cfg_t) :: initial
     type(particles_cfg_t) :: particles
+    type(pair_cfg_t) :: pair
+    type(window_cfg_t) :: window
+    type(diagnostics_cfg_t) :: diagnostics
     type(coupling_cfg_t) :: coupling
     type(collision_cfg_t) :: collision
     type(run_cfg_t) :: run
@@ -202,6 +242,10 @@ contains
     call add_real(reg, 'lbm', 's_q', c%lbm%s_q, '-', 'MRT rate of the heat-flux moments; '// &
                   '0 = 8(2 - 1/tau)/(8 - 1/tau), which puts bounce-back walls half-way (E3)', &
                   gt=0.0_wp, lt=2.0_wp, zero_ok=.true.)
+    call add_real(reg, 'lbm', 'cells_per_diameter', c%lbm%cells_per_diameter, '-', &
+                  'lattice spacings across the smallest particle; > 0 sets dx = width/'// &
+                  'nint(width n/D_min) in place of dx; 0 = use dx', ge=4.0_wp, le=1000.0_wp, &
+                  zero_ok=.true.)
 
     call add_real(reg, 'inlet', 'velocity', c%inlet%velocity, 'cm/s', &
                   'signed y-velocity at a velocity end (centreline value if parabolic)')
@@ -238,6 +282,41 @@ contains
     call add_real(reg, 'particles', 'gravity', c%particles%gravity, 'cm/s^2', &
                   'gravity on the particles, along -y; acts as weight minus buoyancy (E9)', &
                   ge=0.0_wp)
+
+    call add_real(reg, 'pair', 'gamma', c%pair%gamma, '-', 'diameter ratio D_1/D_2 of a '// &
+                  'DKT pair; > 0 sets particles 1 (D_1) and 2 (D_1/gamma); 0 = no pair', &
+                  ge=1.0_wp, le=100.0_wp, zero_ok=.true.)
+    call add_real(reg, 'pair', 'd1', c%pair%d1, 'cm', 'diameter D_1 of the larger particle', &
+                  gt=0.0_wp)
+    call add_real(reg, 'pair', 'dh', c%pair%dh, '-', &
+                  'initial distance D_h of the centres along y, in D_1', gt=0.0_wp)
+    call add_choice(reg, 'pair', 'upper', c%pair%upper, 'larger smaller', &
+                    'which particle starts above the other (case1: larger, case2: smaller)')
+    call add_real(reg, 'pair', 'y_upper', c%pair%y_upper, 'cm', &
+                  'y of the upper particle''s centre at t = 0')
+    call add_real(reg, 'pair', 'x_offset', c%pair%x_offset, 'cm', 'the upper particle '// &
+                  'starts this far right of the centreline, breaking the mirror symmetry')
+    call add_real(reg, 'pair', 'density', c%pair%density, 'g/cm^3', &
+                  'density of both particles', gt=0.0_wp)
+
+    call add_logical(reg, 'window', 'enabled', c%window%enabled, 'follow the lowest '// &
+                     'particle down an infinite channel; sets the domain height and ends (SPEC 5)')
+    call add_real(reg, 'window', 'below', c%window%below, '-', &
+                  'window length below the lowest particle''s centre, in D_1', ge=1.0_wp)
+    call add_real(reg, 'window', 'above', c%window%above, '-', &
+                  'window length above the lowest particle''s centre, in D_1', ge=1.0_wp)
+    call add_real(reg, 'window', 'margin', c%window%margin, '-', 'a particle that comes '// &
+                  'this close (in D_1) to the upper end ends the run early', ge=0.0_wp)
+
+    call add_real(reg, 'diagnostics', 'enter_cells', c%diagnostics%enter_cells, '-', &
+                  'a kissing episode starts at D_r <= max(enter_cells dx, enter_d1 D_1); '// &
+                  '0 = collision.range + 1', gt=0.0_wp, zero_ok=.true.)
+    call add_real(reg, 'diagnostics', 'enter_d1', c%diagnostics%enter_d1, '-', &
+                  'see enter_cells', ge=0.0_wp)
+    call add_real(reg, 'diagnostics', 'release_cells', c%diagnostics%release_cells, '-', &
+                  'an episode ends at D_r > max(release_cells dx, release_d1 D_1)', ge=0.0_wp)
+    call add_real(reg, 'diagnostics', 'release_d1', c%diagnostics%release_d1, '-', &
+                  'see release_cells', ge=0.0_wp)
 
     call add_choice(reg, 'coupling', 'bounce_back', c%coupling%bounce_back, 'halfway yu bfl', &
                     'bounce-back on the particle surface: half-way, Yu et al. or BFL (E6)')
@@ -305,6 +384,14 @@ contains
       call apply_override(reg, overrides(j), file, err)
       if (len(err) > 0) return
     end do
+    do j = 1, size(reg%keys)
+      call check_key(reg%keys(j), cfg%file, err)
+      if (len(err) > 0) return
+    end do
+    call config_to_namelist(cfg, found)
+    call move_alloc(found, cfg%given)
+    call expand(cfg, reg, err)
+    if (len(err) > 0) return
     call validate(cfg, reg, err, found)
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found
@@ -326,6 +413,82 @@ contains
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found
   end subroutine config_validate
+
+  !> Turn the scene-level keys into the plain ones, in place: &pair into particles 1 and 2,
+  !! lbm.cells_per_diameter into dx, &window into the domain's height and ends. Keys were range
+  !! checked; `err` names what cannot be combined. Applying it twice changes nothing more.
+  subroutine expand(c, reg, err)
+    type(config_t), intent(inout) :: c
+    type(registry_t), intent(in) :: reg
+    character(len=:), allocatable, intent(out) :: err
+    real(wp) :: d_min, d1
+    integer :: lo, hi
+    err = ''
+    associate (p => c%particles, q => c%pair)
+      if (q%gamma > 0.0_wp) then
+        if (p%count > 0) then
+          err = origin_of(reg, 'particles', 'count', c%file)//': &pair gamma = '// &
+                fmt_real(q%gamma)//' and &particles count = '//itoa(p%count)//': a pair '// &
+                'scene sets its two particles itself; allowed: count = 0 with gamma > 0, '// &
+                'or gamma = 0 to take the particles from &particles'
+          return
+        end if
+        ! particle 1 is the larger (D_1), particle 2 the smaller; `upper` says which is above
+        hi = merge(1, 2, q%upper == 'larger')
+        lo = 3 - hi
+        p%count = 2
+        p%diameter(1:2) = [q%d1, q%d1/q%gamma]
+        p%density(1:2) = q%density
+        p%motion(1:2) = 'free'
+        p%u(1:2) = 0.0_wp
+        p%v(1:2) = 0.0_wp
+        p%omega(1:2) = 0.0_wp
+        p%x(lo) = 0.5_wp*c%domain%width
+        p%x(hi) = 0.5_wp*c%domain%width + q%x_offset
+        p%y(hi) = q%y_upper
+        p%y(lo) = q%y_upper - q%dh*q%d1
+      end if
+      if (c%lbm%cells_per_diameter > 0.0_wp) then
+        if (p%count == 0) then
+          err = origin_of(reg, 'lbm', 'cells_per_diameter', c%file)// &
+                ': &lbm cells_per_diameter = '//fmt_real(c%lbm%cells_per_diameter)// &
+                ' in a scene without particles; allowed: 0 (set dx instead), or particles'
+          return
+        end if
+        ! the nearest spacing that puts a whole number of cells across the channel
+        d_min = minval(p%diameter(1:p%count))
+        c%lbm%dx = c%domain%width/real(max(3, nint(c%domain%width*c%lbm%cells_per_diameter/ &
+                                                   d_min)), wp)
+      end if
+      if (c%window%enabled) then
+        if (count(p%motion(1:p%count) == 'free') == 0) then
+          err = origin_of(reg, 'window', 'enabled', c%file)//': &window enabled = .true. '// &
+                'with '//itoa(p%count)//' free particles: the window follows the lowest '// &
+                'free particle; allowed: a scene with free particles (&particles or &pair)'
+          return
+        end if
+        d1 = maxval(p%diameter(1:p%count))
+        c%domain%height = real(max(3, nint((c%window%below + c%window%above)*d1/c%lbm%dx)), wp) &
+                          *c%lbm%dx
+        c%domain%lower = 'velocity'
+        c%domain%upper = 'outflow'
+        c%inlet%velocity = 0.0_wp
+        c%inlet%profile = 'uniform'
+        c%inlet%ramp_time = 0.0_wp
+      end if
+    end associate
+  end subroutine expand
+
+  !> y (cm, absolute) of the lower end of the window at t = 0: window%below D_1 under the
+  !! lowest free particle's centre. Particle positions stay absolute; node rows are counted
+  !! from here.
+  pure real(wp) function window_bottom(c) result(y)
+    type(config_t), intent(in) :: c
+    associate (p => c%particles)
+      y = minval(p%y(1:p%count), mask=p%motion(1:p%count) == 'free') - &
+          c%window%below*maxval(p%diameter(1:p%count))
+    end associate
+  end function window_bottom
 
   !> Every check of a configuration: each key's range or choices, then the rules that join
   !! keys. Messages name where the key was set (file:line or --set), else the file.
@@ -381,8 +544,17 @@ contains
     end do
     call check_contacts()
     if (len(err) > 0) return
+    if (c%pair%gamma > 0.0_wp) call check_pair()
+    if (len(err) > 0) return
+    if (c%window%enabled) call check_window()
+    if (len(err) > 0) return
 
     lp = lattice_from(c)
+    if (c%particles%count >= 2) then
+      call check_thresholds()
+      if (len(err) > 0) return
+      call check_duration()
+    end if
     if (c%run%steps == 0) then
       n_steps = c%run%t_end/lp%dt
       if (n_steps < 0.5_wp) then
@@ -468,10 +640,12 @@ contains
         call check_position('x', k, p%x(k), 'width', d%width, d%sides == 'wall', &
                             d%sides == 'wall', '&domain sides = '//quoted(trim(d%sides)))
         if (len(err) > 0) return
-        call check_position('y', k, p%y(k), 'height', d%height, d%lower == 'wall', &
-                            d%upper == 'wall', '&domain lower = '//quoted(trim(d%lower))// &
-                            ', upper = '//quoted(trim(d%upper)))
-        if (len(err) > 0) return
+        if (.not. c%window%enabled) then
+          call check_position('y', k, p%y(k), 'height', d%height, d%lower == 'wall', &
+                              d%upper == 'wall', '&domain lower = '//quoted(trim(d%lower))// &
+                              ', upper = '//quoted(trim(d%upper)))
+          if (len(err) > 0) return
+        end if
 
         cells = p%diameter(k)/c%lbm%dx
         both = origin_of(reg, 'lbm', 'dx', src('diameter', 'particles'))//': '// &
@@ -559,6 +733,89 @@ contains
         end do
       end associate
     end subroutine check_contacts
+
+    !> D_h leaves a gap wider than the contact range of E10 between the pair's surfaces: a
+    !! pair that starts inside the range starts in contact, and drafting is never seen.
+    subroutine check_pair()
+      real(wp) :: contact, dh_min
+      associate (q => c%pair)
+        contact = 0.5_wp*q%d1*(1.0_wp + 1.0_wp/q%gamma) + c%collision%range*c%lbm%dx
+        dh_min = contact/q%d1
+        if (q%dh*q%d1 <= contact*(1.0_wp + CONTACT_TOL)) &
+          err = src('dh', 'pair')//': &pair dh = '//val('pair', 'dh')//' gives D_h = '// &
+                fmt_real(q%dh*q%d1)//' cm with d1 = '//val('pair', 'd1')//', gamma = '// &
+                val('pair', 'gamma')//': the pair starts within the contact distance '// &
+                '(D_1 + D_2)/2 + collision.range dx = '//fmt_real(contact)//' cm; allowed: '// &
+                'dh > '//fmt_real(dh_min)
+      end associate
+    end subroutine check_pair
+
+    !> Every particle lies inside the window at t = 0, below its upper end by the margin.
+    subroutine check_window()
+      real(wp) :: y_lo, y_hi, top, d1, need
+      integer :: k
+      associate (p => c%particles, win => c%window)
+        d1 = maxval(p%diameter(1:p%count))
+        y_lo = window_bottom(c)
+        y_hi = y_lo + c%domain%height
+        do k = 1, p%count
+          top = p%y(k) + 0.5_wp*p%diameter(k) + win%margin*d1
+          if (top > y_hi .or. p%y(k) - 0.5_wp*p%diameter(k) < y_lo) then
+            need = (top - minval(p%y(1:p%count), mask=p%motion(1:p%count) == 'free'))/d1
+            err = src('above', 'window')//': &window above = '//val('window', 'above')// &
+                  ' D_1 (D_1 = '//fmt_real(d1)//' cm) cannot hold the particles: the window '// &
+                  'spans y = '//fmt_real(y_lo)//' .. '//fmt_real(y_hi)//' cm, but particle '// &
+                  itoa(k)//' (y = '//fmt_real(p%y(k))//', diameter '// &
+                  fmt_real(p%diameter(k))//') with the margin of '//val('window', 'margin')// &
+                  ' D_1 reaches '//fmt_real(top)//' cm; allowed: above >= '//fmt_real(need)
+            return
+          end if
+        end do
+      end associate
+    end subroutine check_window
+
+    !> The episode thresholds of &diagnostics (in spacings) leave a hysteresis: release > enter.
+    subroutine check_thresholds()
+      real(wp) :: d1, enter, release
+      associate (g => c%diagnostics)
+        d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
+        enter = g%enter_cells
+        if (enter <= 0.0_wp) enter = c%collision%range + 1.0_wp
+        enter = max(enter, g%enter_d1*d1)
+        release = max(g%release_cells, g%release_d1*d1)
+        if (release <= enter) &
+          err = src('release_cells', 'diagnostics')//': &diagnostics release_cells = '// &
+                val('diagnostics', 'release_cells')//' and release_d1 = '// &
+                val('diagnostics', 'release_d1')//' give a release gap of '// &
+                fmt_real(release)//' spacings, not above the entry gap of '// &
+                fmt_real(enter)//' spacings (D_1 = '//fmt_real(d1)//' spacings); allowed: '// &
+                'release_cells > '//fmt_real(enter)//' or release_d1 > '//fmt_real(enter/d1)
+      end associate
+    end subroutine check_thresholds
+
+    !> A warning when the run looks too short to see the pair kiss and separate: the initial
+    !! surface gap closed at a tenth of the settling-velocity scale u_g = sqrt(pi D_1/2
+    !! (rho_p/rho_f - 1) g) of the larger particle (drafting in case0 closes at about that
+    !! rate), plus five D_1/u_g for the kiss and the separation. A rough estimate, on purpose.
+    subroutine check_duration()
+      real(wp) :: gap, u_g, t_need, t_run
+      associate (p => c%particles)
+        if (any(p%motion(1:2) /= 'free')) return
+        gap = hypot(p%x(1) - p%x(2), p%y(1) - p%y(2)) - 0.5_wp*(p%diameter(1) + p%diameter(2))
+        u_g = sqrt(0.5_wp*pi*maxval(p%diameter(1:2))* &
+                   abs(maxval(p%density(1:2))/c%fluid%density - 1.0_wp)*p%gravity)
+        if (u_g <= 0.0_wp) return
+        t_need = gap/(0.1_wp*u_g) + 5.0_wp*maxval(p%diameter(1:2))/u_g
+        t_run = lp%steps*lp%dt
+        if (t_run >= t_need) return
+        if (len(warnings) > 0) warnings = warnings//NL
+        warnings = warnings//src('t_end', 'run')//': &run t_end = '//fmt_real(t_run)// &
+                   ' s may be too short to classify the DKT pattern of particles 1 and 2: '// &
+                   'closing their gap of '//fmt_real(gap)//' cm at a tenth of the settling '// &
+                   'velocity scale and separating takes about '//fmt_real(t_need)// &
+                   ' s; a pattern ''never'' or ''once'' may only mean the run stopped early'
+      end associate
+    end subroutine check_duration
 
     !> 'key(k) = a and key(m) = b'
     function pair(key, k, m) result(s)

@@ -1,7 +1,14 @@
 !> Run diagnostics and guards: a non-finite population or a Mach number above the limit stops
-!> the run with what, where, when, and what to change.
+!> the run with what, where, when, and what to change. For a pair of particles (SPEC §6): the
+!> gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
+!> the kissing episodes with the DKT pattern they make.
+!>
+!> A kissing episode starts when the surface gap D_r falls to `enter` or below and ends when it
+!> grows above `release` (> enter): the hysteresis keeps a gap that hovers near the contact
+!> range of E10 from counting as many episodes. The pattern is 'repeated' for two or more
+!> episodes, 'once' for one, 'never' for none.
 module dkt_diagnostics
-  use ieee_arithmetic, only: ieee_is_finite
+  use ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
   use mpi_f08, only: MPI_Allreduce, MPI_IN_PLACE, MPI_MAX
   use dkt_kinds, only: wp, mpi_wp, cs2
   use dkt_domain, only: domain_t
@@ -9,7 +16,19 @@ module dkt_diagnostics
   use dkt_errors, only: fatal_local
   implicit none
   private
-  public :: guard_check
+  public :: guard_check, pair_diag_t, pair_diag_init, pair_diag_update, pair_pattern, &
+            pair_gaps, drag_coefficient
+
+  !> The kissing episodes of a pair, updated as the run goes.
+  type :: pair_diag_t
+    real(wp) :: enter = 0.0_wp           !! D_r at or below which an episode starts
+    real(wp) :: release = 0.0_wp         !! D_r above which it ends
+    logical :: in_episode = .false.      !! the last update was inside an episode
+    integer :: n = 0                     !! episodes so far (the current one included)
+    real(wp), allocatable :: t_start(:)  !! start time of each episode
+    real(wp), allocatable :: t_end(:)    !! end time; the last update time while open
+    real(wp), allocatable :: gap_min(:)  !! smallest D_r of each episode
+  end type pair_diag_t
 
 contains
 
@@ -53,5 +72,67 @@ contains
     end do
     call MPI_Allreduce(MPI_IN_PLACE, mach_max, 1, mpi_wp, MPI_MAX, dom%comm)
   end subroutine guard_check
+
+  !> Start with no episode; the thresholds are in the units of the D_r given to the updates.
+  subroutine pair_diag_init(d, enter, release)
+    type(pair_diag_t), intent(out) :: d
+    real(wp), intent(in) :: enter, release
+    d%enter = enter
+    d%release = release
+    allocate (d%t_start(0), d%t_end(0), d%gap_min(0))
+  end subroutine pair_diag_init
+
+  !> One sample (time t, surface gap dr) of the pair, in time order.
+  pure subroutine pair_diag_update(d, t, dr)
+    type(pair_diag_t), intent(inout) :: d
+    real(wp), intent(in) :: t, dr
+    if (d%in_episode) then
+      if (dr > d%release) then
+        d%in_episode = .false.
+      else
+        d%t_end(d%n) = t
+        d%gap_min(d%n) = min(d%gap_min(d%n), dr)
+      end if
+    else if (dr <= d%enter) then
+      d%in_episode = .true.
+      d%n = d%n + 1
+      d%t_start = [d%t_start, t]
+      d%t_end = [d%t_end, t]
+      d%gap_min = [d%gap_min, dr]
+    end if
+  end subroutine pair_diag_update
+
+  !> 'repeated' (two or more episodes), 'once' (one) or 'never' (none).
+  pure function pair_pattern(d) result(name)
+    type(pair_diag_t), intent(in) :: d
+    character(len=:), allocatable :: name
+    select case (d%n)
+    case (0); name = 'never'
+    case (1); name = 'once'
+    case default; name = 'repeated'
+    end select
+  end function pair_pattern
+
+  !> SPEC §6: D_x = x_1 - x_2, D_y = y_1 - y_2, D_r = |X_1 - X_2| - (r_1 + r_2).
+  pure subroutine pair_gaps(x1, y1, r1, x2, y2, r2, gx, gy, gr)
+    real(wp), intent(in) :: x1, y1, r1, x2, y2, r2
+    real(wp), intent(out) :: gx, gy, gr
+    gx = x1 - x2
+    gy = y1 - y2
+    gr = hypot(gx, gy) - (r1 + r2)
+  end subroutine pair_gaps
+
+  !> E12: C_d = F_d / (rho_f U_p^2 D_p / 2), F_d the streamwise (y) hydrodynamic force per
+  !! unit depth and U_p the particle speed; NaN for a particle at rest.
+  elemental real(wp) function drag_coefficient(fy, u, v, rho_f, d) result(cd)
+    real(wp), intent(in) :: fy, u, v, rho_f, d
+    real(wp) :: q
+    q = 0.5_wp*rho_f*(u*u + v*v)*d
+    if (q > 0.0_wp) then
+      cd = fy/q
+    else
+      cd = ieee_value(cd, ieee_quiet_nan)
+    end if
+  end function drag_coefficient
 
 end module dkt_diagnostics

@@ -6,7 +6,8 @@ module dkt_simulation
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, i8, pi, cs2
   use dkt_errors, only: fatal_all, fatal_local, warn
-  use dkt_config, only: config_t, lattice_params_t, config_to_namelist, config_output_dir
+  use dkt_config, only: config_t, lattice_params_t, config_output_dir, window_bottom, &
+                        config_to_namelist
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
@@ -19,7 +20,9 @@ module dkt_simulation
                            particles_solid_field, particles_stable_substeps, MOTION_FREE, &
                            MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
-  use dkt_diagnostics, only: guard_check
+  use dkt_diagnostics, only: guard_check, pair_diag_t, pair_diag_init, pair_diag_update, &
+                             pair_pattern, pair_gaps, drag_coefficient
+  use dkt_window, only: window_t, window_init, window_offset, window_follow, window_escaped
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute
   use dkt_log, only: log_line, log_open, log_close
@@ -48,9 +51,16 @@ module dkt_simulation
     type(particles_t) :: parts      !! allocated only when the scene has particles
     logical :: particles_on = .false.
     logical :: particles_move = .false. !! some particle is free or prescribed
+    type(window_t) :: win           !! used only when the scene asks for a window
+    logical :: window_on = .false.
+    type(pair_diag_t) :: pair       !! particles 1 and 2, when the scene has two or more
+    logical :: pair_on = .false.
     type(io_t) :: io
     logical :: output_open = .false.
+    integer :: csv_unit = 0         !! the diagnostics CSV file (rank 0, when the pair is on)
+    logical :: csv_open = .false.
     integer :: step = 0
+    character(len=:), allocatable :: stopped_early !! why the run ended before its last step
   end type simulation_t
 
 contains
@@ -75,6 +85,7 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
+    real(wp) :: enter
 
     sim%cfg = cfg
     sim%lp = lp
@@ -96,7 +107,26 @@ contains
     allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
     call initialise(sim)
+    sim%window_on = cfg%window%enabled
+    if (sim%window_on) then
+      associate (d1 => maxval(cfg%particles%diameter(1:cfg%particles%count))/lp%dx)
+        call window_init(sim%win, window_bottom(cfg), cfg%window%below*d1, cfg%window%margin*d1)
+      end associate
+    end if
     if (sim%particles_on) call setup_particles(sim)
+    sim%pair_on = cfg%particles%count >= 2
+    if (sim%pair_on) then
+      ! thresholds of a kissing episode (SPEC §6) in lattice spacings
+      ! (E10 holds a kissing pair just inside collision.range: the default entry is one spacing
+      ! beyond it)
+      associate (d => cfg%diagnostics, d1 => maxval(cfg%particles%diameter(1:2))/lp%dx)
+        enter = d%enter_cells
+        if (enter <= 0.0_wp) enter = cfg%collision%range + 1.0_wp
+        call pair_diag_init(sim%pair, max(enter, d%enter_d1*d1), &
+                            max(d%release_cells, d%release_d1*d1))
+      end associate
+    end if
+    sim%stopped_early = ''
   end subroutine simulation_setup
 
   !> The particles of the scene in lattice units (SPEC §3–4), their first boundary links and
@@ -105,7 +135,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer :: n, k
     integer, allocatable :: motion(:)
-    real(wp) :: dx, dt, rho_f
+    real(wp) :: dx, dt, rho_f, y0
     integer :: scheme
     character(len=256) :: line
     n = sim%cfg%particles%count
@@ -125,9 +155,12 @@ contains
     case ('bfl'); scheme = BB_BFL
     case default; scheme = BB_YU
     end select
+    y0 = 0.0_wp
+    if (sim%window_on) y0 = sim%win%y_origin ! positions are absolute, rows count from here
     associate (p => sim%cfg%particles, c => sim%cfg%collision)
       ! E10 stiffnesses: eps_p in cm^2 s^2/(g/cm) and eps'_p in cm s^2/(g/cm) per unit depth
-      call particles_init(sim%parts, sim%dom, p%x(1:n)/dx, p%y(1:n)/dx, 0.5_wp*p%diameter(1:n)/dx, &
+      call particles_init(sim%parts, sim%dom, p%x(1:n)/dx, (p%y(1:n) - y0)/dx, &
+                          0.5_wp*p%diameter(1:n)/dx, &
                           p%u(1:n)*dt/dx, p%v(1:n)*dt/dx, p%omega(1:n)*dt, &
                           p%density(1:n)/rho_f, motion, scheme, &
                           sim%cfg%coupling%momentum == 'galilean', p%gravity*dt*dt/dx, &
@@ -186,8 +219,8 @@ contains
   !! starts (and by --check instead of running).
   subroutine simulation_summary(sim)
     type(simulation_t), intent(in) :: sim
-    character(len=256) :: line, particles
-    real(wp) :: s(0:8), lattice_mib, output_mib
+    character(len=256) :: line, particles, window
+    real(wp) :: s(0:8), lattice_mib, output_mib, d1
     integer :: k
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
@@ -228,9 +261,15 @@ contains
       else
         particles = 'particles: none'
       end if
+      window = 'window: none'
+      if (sim%window_on) then
+        d1 = maxval(cfg%particles%diameter(1:cfg%particles%count))
+        write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
+          cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
+      end if
       write (line, '(a,f10.2,a,f8.2,a)') 'memory per rank: lattices ', lattice_mib, &
         ' MiB, output buffers ', output_mib, ' MiB while writing; '//trim(particles)// &
-        '; window: none'
+        '; '//trim(window)
       call log_line(trim(line))
       line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
@@ -245,7 +284,18 @@ contains
       else
         line = trim(line)//'; particles off'
       end if
-      call log_line(trim(line)//'; window off')
+      if (sim%window_on) then
+        line = trim(line)//'; window on (lower end fluid at rest, upper end outflow)'
+      else
+        line = trim(line)//'; window off'
+      end if
+      call log_line(trim(line))
+      if (sim%pair_on) then
+        write (line, '(a,f6.2,a,f6.2,a)') 'pair diagnostics: particles 1 and 2; a kissing '// &
+          'episode starts at D_r <= ', sim%pair%enter, ' spacings and ends at D_r > ', &
+          sim%pair%release, ' spacings'
+        call log_line(trim(line))
+      end if
       k = lp%field_every
       if (k > 0) then
         write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
@@ -261,6 +311,8 @@ contains
   subroutine simulation_open_output(sim)
     type(simulation_t), intent(inout) :: sim
     character(len=:), allocatable :: dir, err, nml
+    character(len=256) :: msg
+    integer :: ios
     character(len=64) :: pnames(12)
     real(wp) :: pvalues(12), s(0:8)
     logical :: ok
@@ -280,14 +332,27 @@ contains
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)
 
-    call config_to_namelist(sim%cfg, nml)
     s = collision_describe(sim%coll)
     pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
               'nx', 'ny', 'steps', 'mach']
     pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
                real(sim%lp%nx, wp), real(sim%lp%ny, wp), real(sim%lp%steps, wp), sim%lp%mach]
+    if (allocated(sim%cfg%given)) then
+      nml = sim%cfg%given            ! the input as read, before &pair and &window expanded
+    else
+      call config_to_namelist(sim%cfg, nml)
+    end if
     call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
                       compiler_version(), dkt_build_flags, pnames, pvalues)
+    if (sim%pair_on .and. sim%dom%rank == 0) then
+      ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
+      open (newunit=sim%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
+            status='replace', action='write', iostat=ios, iomsg=msg)
+      if (ios /= 0) call fatal_local(trim(msg))
+      sim%csv_open = .true.
+      write (sim%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
+        'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
+    end if
   end subroutine simulation_open_output
 
   !> The time loop.
@@ -296,6 +361,7 @@ contains
     real(wp), pointer, contiguous :: tmp(:, :, :)
     integer :: n, nyl, nx, nxp, last_progress
     real(wp) :: t, mach, t_start, t_last
+    logical :: last
     character(len=256) :: line
 
     nx = sim%dom%nx
@@ -327,32 +393,39 @@ contains
         sim%f_next => tmp
         sim%step = n
         t = n*lp%dt
+        if (sim%window_on) call follow_particles(sim, n)
+        if (sim%pair_on) call pair_sample(sim, n)
+        last = n == lp%steps .or. len(sim%stopped_early) > 0
 
-        if (mod(n, cfg%run%guard_every) == 0 .or. n == lp%steps) &
+        if (mod(n, cfg%run%guard_every) == 0 .or. last) &
           call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
         if (lp%field_every > 0) then
-          if (mod(n, lp%field_every) == 0 .and. n /= lp%steps) call write_fields(sim, n)
+          if (mod(n, lp%field_every) == 0 .and. .not. last) call write_fields(sim, n)
         end if
         if (sim%particles_on .and. lp%series_every > 0) then
-          if (mod(n, lp%series_every) == 0 .and. n /= lp%steps) call write_particles(sim, n)
+          if (mod(n, lp%series_every) == 0 .and. .not. last) call write_particles(sim, n)
         end if
         if (cfg%run%progress_every > 0) then
-          if (mod(n, cfg%run%progress_every) == 0 .and. n /= lp%steps) then
+          if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
             if (mod(n, cfg%run%guard_every) /= 0) &
               call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
             call progress(n, last_progress, t_last, t_start, mach)
           end if
         end if
+        if (last) exit
       end do
+      n = sim%step
       t = MPI_Wtime() - t_start
       write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
-        real(lp%nx, wp)*real(lp%ny, wp)*real(lp%steps, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
-        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', lp%steps, ' steps in ', t, ' s on ', &
+        real(lp%nx, wp)*real(lp%ny, wp)*real(n, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
+        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', n, ' steps in ', t, ' s on ', &
         sim%dom%nranks, ' ranks)'
-      call write_fields(sim, lp%steps)
-      if (sim%particles_on) call write_particles(sim, lp%steps)
+      call write_fields(sim, n)
+      if (sim%particles_on) call write_particles(sim, n)
       call log_line(trim(line))
+      if (len(sim%stopped_early) > 0) call warn(sim%stopped_early)
+      if (sim%pair_on) call pair_report(sim)
     end associate
   contains
     subroutine progress(n, last, t_last, t_start, mach)
@@ -400,6 +473,39 @@ contains
     if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
 
+  !> SPEC §5: move the window with the lowest particle; a particle near the upper end (the
+  !! pair has separated by more than the window holds) ends the run after this step.
+  subroutine follow_particles(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    logical :: moved
+    integer :: k
+    character(len=320) :: msg
+    call window_follow(sim%win, sim%dom, sim%parts, sim%f, moved)
+    if (moved) call particles_find_links(sim%parts, sim%dom)
+    k = window_escaped(sim%win, sim%parts, sim%lp%ny)
+    if (k > 0) then
+      write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
+        ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
+        n*sim%lp%dt, ' s): the particles separated by more than the window holds ('// &
+        'window.above = ', sim%cfg%window%above, ' D_1); the run ends here. Raise '// &
+        'window.above to follow them further'
+      sim%stopped_early = trim(msg)
+    end if
+  end subroutine follow_particles
+
+  !> The gap of particles 1 and 2 after step n, for the kissing episodes (SPEC §6); every
+  !! step, so that no episode falls between two samples of the series.
+  subroutine pair_sample(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp) :: gx, gy, gr
+    associate (a => sim%parts%p(1), b => sim%parts%p(2))
+      call pair_gaps(a%x, a%y, a%r, b%x, b%y, b%r, gx, gy, gr)
+    end associate
+    call pair_diag_update(sim%pair, n*sim%lp%dt, gr)
+  end subroutine pair_sample
+
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
   !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
   !! of the step that reached time t.
@@ -407,22 +513,114 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: v(:, :)
-    real(wp) :: dx, dt, fu
+    real(wp) :: dx, dt, fu, y0
     integer :: k
     dx = sim%lp%dx
     dt = sim%lp%dt
     fu = sim%cfg%fluid%density*dx**3/dt**2
+    y0 = 0.0_wp
+    ! lattice y counts from the window's lower end; the series holds absolute positions
+    if (sim%window_on) y0 = window_offset(sim%win, dx)
     allocate (v(sim%parts%n, 8))
     do k = 1, sim%parts%n
       associate (p => sim%parts%p(k))
-        v(k, :) = [p%x*dx, p%y*dx, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
+        v(k, :) = [p%x*dx, p%y*dx + y0, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
                    p%fy*fu, p%torque*fu*dx]
       end associate
     end do
     if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
     call io_write_series(sim%io, 'particles', ['t'], [n*dt])
     call io_write_table(sim%io, 'particles', series_names, v)
+    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])
+    if (sim%pair_on) call write_pair(sim, n, v)
   end subroutine write_particles
+
+  !> One sample of /diagnostics (SPEC §6) and of the CSV file, from the particle sample `v`
+  !! (particle, quantity) in physical units as written to /particles.
+  subroutine write_pair(sim, n, v)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), intent(in) :: v(:, :)
+    real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
+    character(len=7) :: names(6)
+    character(len=1024) :: row
+    integer :: k
+    t = n*sim%lp%dt
+    rho_f = sim%cfg%fluid%density
+    mu = sim%cfg%fluid%viscosity
+    d = 2.0_wp*sim%parts%p(1:2)%r*sim%lp%dx
+    call pair_gaps(v(1, 1), v(1, 2), 0.5_wp*d(1), v(2, 1), v(2, 2), 0.5_wp*d(2), gx, gy, gr)
+    do k = 1, 2
+      re(k) = rho_f*hypot(v(k, 3), v(k, 4))*d(k)/mu
+      cd(k) = drag_coefficient(v(k, 7), v(k, 3), v(k, 4), rho_f, d(k))
+    end do
+    names = [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
+    call io_write_series(sim%io, 'diagnostics', names, &
+                         [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)])
+    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]))
+    if (sim%csv_open) then
+      write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
+        re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
+      write (sim%csv_unit, '(a)') trim(row)
+    end if
+  end subroutine write_pair
+
+  !> At the end of a run with a pair: the pattern and its episodes into /diagnostics and the
+  !! log, with the thresholds they were found with.
+  subroutine pair_report(sim)
+    type(simulation_t), intent(inout) :: sim
+    real(wp) :: dx, d(2), gamma, dh
+    character(len=7), parameter :: episode_names(3) = ['start  ', 'end    ', 'gap_min']
+    character(len=256) :: line
+    character(len=:), allocatable :: pattern
+    integer :: k
+    dx = sim%lp%dx
+    pattern = pair_pattern(sim%pair)
+    associate (cp => sim%cfg%particles, e => sim%pair)
+      d = cp%diameter(1:2)
+      gamma = maxval(d)/minval(d)
+      dh = abs(cp%y(1) - cp%y(2))/maxval(d)
+      call io_write_attribute(sim%io, '/diagnostics', 'pattern', pattern)
+      call io_write_attribute(sim%io, '/diagnostics', 'episodes', e%n)
+      call io_write_attribute(sim%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter', e%enter*dx)
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release', e%release*dx)
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter_cells', &
+                              merge(sim%cfg%diagnostics%enter_cells, &
+                                    sim%cfg%collision%range + 1.0_wp, &
+                                    sim%cfg%diagnostics%enter_cells > 0.0_wp))
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
+                              sim%cfg%diagnostics%release_cells)
+      call io_write_attribute(sim%io, '/diagnostics', 'd1', maxval(d))
+      call io_write_attribute(sim%io, '/diagnostics', 'gamma', gamma)
+      call io_write_attribute(sim%io, '/diagnostics', 'dh', dh)
+      call io_write_attribute(sim%io, '/diagnostics', 't_ref', sim%cfg%run%t_ref)
+      call io_write_attribute(sim%io, '/diagnostics', 'h_ref', &
+                              cp%gravity*sim%cfg%run%t_ref**2)
+      call io_write_attribute(sim%io, '/diagnostics', 'gravity', cp%gravity)
+      call io_write_attribute(sim%io, '/diagnostics', 'width', sim%cfg%domain%width)
+      call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
+                              merge(1, 0, len(sim%stopped_early) > 0))
+      do k = 1, e%n
+        call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
+                             [e%t_start(k), e%t_end(k), e%gap_min(k)*dx])
+      end do
+      write (line, '(a,f5.2,a,f6.2,a,i0,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
+        ', D_h/D_1 = ', dh, '; ', e%n, ' kissing episodes)'
+      call log_line(trim(line))
+      do k = 1, e%n
+        write (line, '(a,i0,a,f8.4,a,f8.4,a,f7.3,a,f7.3,a,f7.4,a)') '  episode ', k, ': t = ', &
+          e%t_start(k), ' .. ', e%t_end(k), ' s (t* = ', e%t_start(k)/sim%cfg%run%t_ref, &
+          ' .. ', e%t_end(k)/sim%cfg%run%t_ref, '), smallest D_r = ', e%gap_min(k)*dx, ' cm'
+        if (k == e%n .and. e%in_episode) line = trim(line)//', still open at the end'
+        call log_line(trim(line))
+      end do
+      write (line, '(a,f7.4,a,f5.2,a,f7.4,a,f5.2,a)') '  thresholds: enter D_r <= ', &
+        e%enter*dx, ' cm (', e%enter, ' spacings), release D_r > ', e%release*dx, ' cm (', &
+        e%release, ' spacings)'
+      call log_line(trim(line))
+    end associate
+  end subroutine pair_report
 
   !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
   !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
@@ -430,7 +628,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: fld(:, :, :)
-    real(wp) :: uc
+    real(wp) :: uc, y0
     associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
       allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
       call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
@@ -440,11 +638,13 @@ contains
       fld(:, :, 1) = fld(:, :, 1)*sim%cfg%fluid%density
       fld(:, :, 2:3) = fld(:, :, 2:3)*uc
       fld(:, :, 4) = fld(:, :, 4)/lp%dt
+      y0 = 0.0_wp
+      if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
       if (sim%particles_on) then
         call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
-        call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names, fld)
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)
       else
-        call io_write_fields(sim%io, n, n*lp%dt, 0.0_wp, field_names(1:5), fld)
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names(1:5), fld)
       end if
     end associate
   end subroutine write_fields
@@ -453,6 +653,8 @@ contains
     type(simulation_t), intent(inout) :: sim
     if (sim%output_open) call io_close(sim%io)
     sim%output_open = .false.
+    if (sim%csv_open) close (sim%csv_unit)
+    sim%csv_open = .false.
     call log_close()
     deallocate (sim%f, sim%f_next)
     call domain_free(sim%dom)

@@ -592,8 +592,9 @@ contains
     type(config_t) :: cfg
     type(lattice_params_t) :: lp
     character(len=:), allocatable :: err, warnings
-    call config_load(cfg, '&particles count = 2, diameter = 0.2, 0.024, y = 2, 3 /', FILE, &
-                     none, err, warnings)
+    ! (t_end long enough for the pair's DKT pattern: no warning about the run's length)
+    call config_load(cfg, '&particles count = 2, diameter = 0.2, 0.024, y = 2, 3 / '// &
+                     '&run t_end = 10 /', FILE, none, err, warnings)
     call check('6 cells per diameter is accepted', len(err) == 0)
     call expect_parts('6 cells per diameter gives a warning naming key, value, dx and cells', &
                       warnings, [character(len=40) :: 'input/test.nml:1:', &

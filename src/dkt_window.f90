@@ -1,0 +1,115 @@
+!> The moving window of an infinite channel (SPEC §5): the lattice follows the lowest free
+!> particle down. Each time that particle has moved down by one lattice spacing, the top row
+!> of the lattice is dropped, every row moves up by one, and a fresh row of fluid at rest
+!> (equilibrium) enters at the bottom; the particles move up by one spacing in lattice
+!> coordinates, so their absolute positions are unchanged.
+!>
+!> Across slabs the shift is one exchange: each rank sends its top row (all nine populations)
+!> to the rank above and receives the top row of the rank below as its new first row. A shift
+!> is exact (a copy of values; particle coordinates move by 1.0, which is exact in floating
+!> point for coordinates >= 1), and every rank decides it from the same particle state, so a
+!> window run has the same bits on any number of ranks.
+module dkt_window
+  use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE
+  use dkt_kinds, only: wp, mpi_wp
+  use dkt_lattice, only: equilibrium
+  use dkt_domain, only: domain_t
+  use dkt_particles, only: particles_t, MOTION_FREE
+  implicit none
+  private
+  public :: window_t, window_init, window_offset, window_follow, window_escaped
+
+  integer, parameter :: TAG_SHIFT = 21
+
+  type :: window_t
+    integer :: shift = 0            !! rows the window has moved down since t = 0
+    real(wp) :: y_origin = 0.0_wp   !! cm, absolute y of the lower end at t = 0
+    real(wp) :: below = 0.0_wp      !! lattice spacings from the lower end to the lowest centre
+    real(wp) :: margin = 0.0_wp     !! lattice spacings: the closest a particle may come to the top
+  end type window_t
+
+contains
+
+  !> A window whose lower end starts at y_origin (cm), keeping the lowest free centre `below`
+  !! spacings above it; a particle within `margin` spacings of the upper end has escaped.
+  subroutine window_init(win, y_origin, below, margin)
+    type(window_t), intent(out) :: win
+    real(wp), intent(in) :: y_origin, below, margin
+    win%y_origin = y_origin
+    win%below = below
+    win%margin = margin
+  end subroutine window_init
+
+  !> y (cm, absolute) of the window's lower end, the y of the bottom face of row 1.
+  pure real(wp) function window_offset(win, dx) result(y)
+    type(window_t), intent(in) :: win
+    real(wp), intent(in) :: dx !! cm, lattice spacing
+    y = win%y_origin - real(win%shift, wp)*dx
+  end function window_offset
+
+  !> Move the window down, a row at a time, until the lowest free particle is again within one
+  !! spacing of `below` above the lower end. f holds the populations of rows 1..nyl between
+  !! two steps. `moved`: the window moved (the caller renews the boundary links).
+  subroutine window_follow(win, dom, ps, f, moved)
+    type(window_t), intent(inout) :: win
+    type(domain_t), intent(in) :: dom
+    type(particles_t), intent(inout) :: ps
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    logical, intent(out) :: moved
+    real(wp) :: lowest
+    integer :: k
+    moved = .false.
+    do
+      lowest = huge(1.0_wp)
+      do k = 1, ps%n
+        if (ps%p(k)%motion == MOTION_FREE) lowest = min(lowest, ps%p(k)%y)
+      end do
+      if (lowest >= win%below - 1.0_wp) exit
+      call shift_rows(dom, f)
+      do k = 1, ps%n
+        ps%p(k)%y = ps%p(k)%y + 1.0_wp
+      end do
+      win%shift = win%shift + 1
+      moved = .true.
+    end do
+  end subroutine window_follow
+
+  !> The first particle (by index) within the margin of the window's upper end, 0 if none:
+  !! the pair has separated by more than the window holds.
+  pure integer function window_escaped(win, ps, ny) result(k)
+    type(window_t), intent(in) :: win
+    type(particles_t), intent(in) :: ps
+    integer, intent(in) :: ny !! rows of the lattice
+    do k = 1, ps%n
+      if (ps%p(k)%y + ps%p(k)%r > real(ny, wp) - win%margin) return
+    end do
+    k = 0
+  end function window_escaped
+
+  !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of
+  !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest.
+  subroutine shift_rows(dom, f)
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    real(wp), allocatable :: sbuf(:, :), rbuf(:, :)
+    real(wp) :: feq(0:8)
+    integer :: j, i, nyl
+    nyl = dom%nyl
+    allocate (sbuf(0:size(f, 1) - 1, 0:8), rbuf(0:size(f, 1) - 1, 0:8))
+    sbuf = f(:, nyl, :)
+    call MPI_Sendrecv(sbuf, size(sbuf), mpi_wp, dom%above, TAG_SHIFT, rbuf, size(rbuf), mpi_wp, &
+                      dom%below, TAG_SHIFT, dom%comm, MPI_STATUS_IGNORE)
+    do j = nyl, 2, -1
+      f(:, j, :) = f(:, j - 1, :)
+    end do
+    if (dom%has_lower_end) then
+      feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
+      do i = 0, size(f, 1) - 1
+        f(i, 1, :) = feq
+      end do
+    else
+      f(:, 1, :) = rbuf
+    end if
+  end subroutine shift_rows
+
+end module dkt_window
