@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
-# Command A: set up and build (tools/setup.sh), then run one scene on MPI ranks.
+# Command A: set up and build (tools/setup.sh), then run one scene on MPI ranks; a scene with a
+# pair of particles ends with its DKT pattern (printed by dktlbm) and, when postproc/gap.py is
+# there, the gap plot beside the run's HDF5 file.
 #
 #   tools/run.sh [scene.nml] [ranks] [dktlbm options...]
 #
-# Defaults: input/channel.nml on 2 ranks. Further arguments go to dktlbm, e.g.
-#   tools/run.sh input/case1.nml 2 --set run.t_end=0.5
+# Defaults: input/case1.nml (the paper's Case 1) on 2 ranks. Further arguments go to dktlbm,
+# e.g. the preview  tools/run.sh input/case1.nml 2 --set lbm.cells_per_diameter=12
 # The run's files go to output.dir of the scene (default runs/<scene name>, below the
 # repository root).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-scene=${1:-input/channel.nml}
+scene=${1:-input/case1.nml}
 ranks=${2:-2}
 shift $(($# < 2 ? $# : 2))
 
@@ -42,4 +44,12 @@ if mpirun --version 2>&1 | grep -Eq 'Open MPI|OpenRTE'; then
 fi
 # Show the scene relative to the root when it lies inside it (as in the README).
 case "$scene" in "$root"/*) scene=${scene#"$root"/} ;; esac
-exec "${launcher[@]}" build/dktlbm "$scene" "$@"
+# the run's HDF5 file, from the start-up summary of --check ('... into DIR/NAME.h5')
+h5=$("${launcher[@]}" build/dktlbm "$scene" "$@" --check | sed -n 's/.* into \(.*\.h5\)$/\1/p' |
+  tail -n 1)
+"${launcher[@]}" build/dktlbm "$scene" "$@"
+if [ -n "$h5" ] && [ -f postproc/gap.py ] &&
+  python3 -c 'import h5py, sys; sys.exit(0 if "diagnostics" in h5py.File(sys.argv[1]) else 1)' \
+    "$h5" 2> /dev/null; then
+  python3 postproc/gap.py "$h5"
+fi
