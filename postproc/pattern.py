@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""The DKT pattern of a run: repeated (two or more kissing episodes), once (one) or never
+(none), with each episode's start and end (s and t*) and its smallest gap, the thresholds
+used, gamma = D_1/D_2 and D_h/D_1.
+
+A file with /diagnostics is reported as the program classified it. Giving any threshold
+option classifies the gap again here, the options not given keeping the defaults:
+enter = max(enter_cells dx, enter_d1 D_1) (defaults 2 and 0.05), release = max(release_cells
+dx, release_d1 D_1) (defaults 4 and 0.25). A file without /diagnostics is classified here from
+/particles with its own settings (or the defaults)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from dktread import Pair, fmt, guarded, open_run, pair_of
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pattern.py",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  python3 postproc/pattern.py runs/case1/case1.h5\n"
+        "  python3 postproc/pattern.py runs/case1/case1.h5 --json --enter-cells 1",
+    )
+    p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--enter-cells", type=float, metavar="N",
+                   help="an episode starts at D_r <= N lattice spacings (or --enter-d1)")
+    p.add_argument("--enter-d1", type=float, metavar="F",
+                   help="an episode starts at D_r <= F D_1 (or --enter-cells)")
+    p.add_argument("--release-cells", type=float, metavar="N",
+                   help="an episode ends at D_r > N lattice spacings (and --release-d1)")
+    p.add_argument("--release-d1", type=float, metavar="F",
+                   help="an episode ends at D_r > F D_1 (and --release-cells)")
+    return p
+
+
+def _num(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+def report(pair: Pair) -> dict[str, Any]:
+    """The pattern of `pair` as a JSON-ready dictionary."""
+    t_ref = pair.run.t_ref
+    lim = pair.limits
+    return {
+        "file": str(pair.run.path),
+        "pattern": pair.pattern,
+        "episodes": len(pair.episodes),
+        "open_episode": pair.open_episode,
+        "gamma": _num(pair.gamma),
+        "dh": _num(pair.dh),
+        "d1": _num(pair.d1),
+        "t_ref": t_ref,
+        "thresholds": {
+            "enter_cm": _num(lim.enter),
+            "release_cm": _num(lim.release),
+            "enter_cells": _num(lim.enter_cells),
+            "release_cells": _num(lim.release_cells),
+            "enter_d1": _num(lim.enter_d1),
+            "release_d1": _num(lim.release_d1),
+            "dx": _num(lim.dx),
+            "rule": lim.rule,
+        },
+        "source": pair.source,
+        "kissing": [
+            {
+                "start": e.start,
+                "end": e.end,
+                "start_tstar": e.start / t_ref,
+                "end_tstar": e.end / t_ref,
+                "min_gap": _num(e.min_gap),
+                "min_gap_d1": _num(e.min_gap / pair.d1),
+                "open": e.open,
+            }
+            for e in pair.episodes
+        ],
+        "t_end": float(pair.t[-1]) if pair.t.size else None,
+    }
+
+
+def _s(value: float | None, digits: int = 4) -> str:
+    return "nan" if value is None else fmt(value, digits)
+
+
+def text(r: dict[str, Any]) -> str:
+    th = r["thresholds"]
+    n = r["episodes"]
+    lines = [
+        f"{r['file']}: pattern {r['pattern']} ({n} kissing episode{'s' if n != 1 else ''}"
+        f"{', the last still open at the end' if r['open_episode'] else ''})",
+        f"  gamma = D_1/D_2 = {_s(r['gamma'])}, D_h/D_1 = "
+        f"{_s(r['dh'])}, D_1 = {_s(r['d1'])} cm",
+        f"  thresholds ({th['rule']}): kissing starts at D_r <= {_s(th['enter_cm'])} cm "
+        f"({_s(th['enter_cells'], 3)} lattice spacings, "
+        f"{_s(th['enter_d1'], 3)} D_1),",
+        f"    ends at D_r > {_s(th['release_cm'])} cm "
+        f"({_s(th['release_cells'], 3)} lattice spacings, "
+        f"{_s(th['release_d1'], 3)} D_1); lattice spacing "
+        f"{_s(th['dx'])} cm",
+        f"  classification: {r['source']}; run ends at t = {_s(r['t_end'])} s, "
+        f"t_r = {fmt(r['t_ref'])} s",
+    ]
+    for k, e in enumerate(r["kissing"], 1):
+        gap, gap_d1 = _s(e["min_gap"]), _s(e["min_gap_d1"], 3)
+        lines.append(
+            f"  episode {k}: t = {e['start']:.4f} .. {e['end']:.4f} s "
+            f"(t* = {e['start_tstar']:.3f} .. {e['end_tstar']:.3f}), min D_r = {gap} cm "
+            f"({gap_d1} D_1){', open at the end of the run' if e['open'] else ''}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    limits = {
+        "enter_cells": args.enter_cells,
+        "enter_d1": args.enter_d1,
+        "release_cells": args.release_cells,
+        "release_d1": args.release_d1,
+    }
+    given = {k: v for k, v in limits.items() if v is not None}
+
+    def body() -> int:
+        r = report(pair_of(open_run(args.run, need_particles=2), given or None))
+        print(json.dumps(r, indent=2) if args.json else text(r))
+        return 0
+
+    return guarded(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

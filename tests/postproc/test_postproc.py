@@ -1,0 +1,461 @@
+"""The post-processing scripts (postproc/): the run-file reader, the DKT classifier, pattern.py,
+the plotting scripts' command lines and their handling of bad input, on synthetic run files
+whose gap curves cross the thresholds at known times (tests/postproc/synthetic.py) and on two
+small real runs. Each test's docstring says what it proves."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import synthetic as syn
+
+import dktread
+import gap
+import pattern
+from dkt_run import ROOT, run
+
+POSTPROC = ROOT / "postproc"
+PLOTS = {"gap": "gap", "trajectories": "trajectories", "drag": "drag", "field": "vorticity"}
+SCRIPTS = [*PLOTS, "pattern"]
+
+
+def script(name: str, *args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """Run postproc/<name>.py as a user does: a separate python3 process."""
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run([sys.executable, str(POSTPROC / f"{name}.py"), *map(str, args)],
+                          capture_output=True, text=True, timeout=120, env=env, cwd=cwd)
+
+
+def assert_png(path: Path) -> None:
+    assert path.is_file(), f"{path} missing"
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 2000, f"{path} is not a PNG image"
+
+
+def assert_pdf(path: Path) -> None:
+    assert path.is_file(), f"{path} missing"
+    data = path.read_bytes()
+    assert data[:5] == b"%PDF-" and len(data) > 1000, f"{path} is not a PDF"
+
+
+def expected_episodes(name: str) -> list[tuple[float, float, bool]]:
+    """(start, end, open) of each episode of synthetic shape `name`: the start is the first
+    sample at or after the analytic crossing of ENTER downwards, the end the first sample
+    after the crossing of RELEASE upwards (the last sample for an open episode)."""
+    k = syn.SHAPES[name]
+    first = after = syn.first_sample_at_or_after  # no crossing falls on a sample
+    if name == "repeated":
+        return [(first(syn.crossing(k, 0, syn.ENTER)), after(syn.crossing(k, 2, syn.RELEASE)),
+                 False),
+                (first(syn.crossing(k, 3, syn.ENTER)), after(syn.crossing(k, 4, syn.RELEASE)),
+                 False)]
+    if name == "once":
+        return [(first(syn.crossing(k, 0, syn.ENTER)), after(syn.crossing(k, 3, syn.RELEASE)),
+                 False)]
+    if name == "open":
+        return [(first(syn.crossing(k, 0, syn.ENTER)), syn.T_END, True)]
+    return []
+
+
+# ---------------------------------------------------------------- reader and classifier
+
+
+def test_namelist_parser_reads_the_input_grammar() -> None:
+    """parse_namelist follows input/README.md: groups, several items on a line, arrays, one
+    element by index, quoted strings with '!' and doubled quotes, comments, &end."""
+    text = """! comment
+&Domain
+  width = 2.5, height = 8.0   ! cm
+  sides = 'wall'
+/
+&particles
+  diameter = 0.2, 0.1
+  diameter(2) = 0.05
+  motion = 'free', 'it''s!'
+/
+&run t_end = 1d-1 &end
+"""
+    nml = dktread.parse_namelist(text)
+    assert dktread.nml_float(nml, "domain", "width", 0.0) == 2.5
+    assert dktread.nml_float(nml, "domain", "height", 0.0) == 8.0
+    assert nml["domain"]["sides"] == ["wall"]
+    assert dktread.nml_floats(nml, "particles", "diameter") == [0.2, 0.05]
+    assert nml["particles"]["motion"] == ["free", "it's!"]
+    assert dktread.nml_float(nml, "run", "t_end", 0.0) == pytest.approx(0.1)
+    assert dktread.nml_float(nml, "fluid", "density", 1.0) == 1.0  # absent: the default
+
+
+def test_classifier_follows_the_episode_definition() -> None:
+    """An episode starts at the first sample with D_r <= enter (equality included) and ends at
+    the first later sample with D_r > release (equality does not end it); a rise above enter
+    but not above release keeps the episode; an episode still open ends at the last sample."""
+    enter, release = 0.02, 0.05
+    dr = np.array([0.3, 0.02, 0.05, 0.04, 0.0500001, 0.2, 0.01, 0.3, 0.019, 0.03])
+    episodes, is_open = dktread.classify(dr, enter, release)
+    assert episodes == [(1, 4), (6, 7), (8, 9)]
+    assert is_open
+    assert dktread.classify(np.array([0.3, 0.021, 0.3]), enter, release) == ([], False)
+    assert [dktread.pattern_name(n) for n in (0, 1, 2, 5)] == ["never", "once", "repeated",
+                                                               "repeated"]
+
+
+def test_thresholds_take_the_larger_of_spacings_and_d1_fraction() -> None:
+    """enter = max(2 dx, 0.05 D_1), release = max(4 dx, 0.25 D_1) by default: on a coarse
+    lattice the spacings decide, on a fine one the fractions of D_1."""
+    coarse = dktread.thresholds(0.025, 0.2)
+    assert (coarse.enter, coarse.release) == pytest.approx((0.05, 0.1))
+    fine = dktread.thresholds(0.001, 0.2)
+    assert (fine.enter, fine.release) == pytest.approx((0.01, 0.05))
+    assert coarse.enter_cells == pytest.approx(2.0) and fine.release_d1 == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("shape", list(syn.SHAPES))
+def test_pattern_computed_from_particles_matches_the_gap_curve(tmp_path: Path,
+                                                               shape: str) -> None:
+    """Without /diagnostics the reader computes D_x, D_y, D_r from /particles and classifies:
+    the pattern, each episode's start and end (to the sample after the analytic crossing),
+    the open flag and the smallest gap are those of the constructed gap curve; gamma and
+    D_h/D_1 are those of the construction."""
+    f = tmp_path / f"{shape}.h5"
+    s = syn.write_run(f, syn.SHAPES[shape], (0.2, 0.1))
+    pair = dktread.pair_of(dktread.open_run(f, need_particles=2))
+    assert pair.source.startswith("computed")
+    np.testing.assert_allclose(pair.dr, s["dr"], atol=1e-12)
+    np.testing.assert_allclose(pair.dx, s["dx"], atol=1e-12)
+    assert pair.gamma == pytest.approx(2.0)
+    assert pair.dh == pytest.approx((0.4 + 0.15) / 0.2)  # first knot gap + R_1 + R_2, over D_1
+    assert (pair.limits.enter, pair.limits.release) == pytest.approx((syn.ENTER, syn.RELEASE))
+    expected = expected_episodes(shape)
+    assert pair.pattern == {0: "never", 1: "once"}.get(len(expected), "repeated")
+    assert len(pair.episodes) == len(expected)
+    for got, (start, end, is_open) in zip(pair.episodes, expected, strict=True):
+        assert got.start == pytest.approx(start, abs=1e-9)
+        assert got.end == pytest.approx(end, abs=1e-9)
+        assert got.open == is_open
+        knots_inside = [d for t, d in syn.SHAPES[shape] if start <= t <= end]
+        assert got.min_gap == pytest.approx(min(knots_inside), abs=1e-9)
+    assert pair.open_episode == (shape == "open")
+
+
+def test_scales_come_from_diagnostics_else_the_namelist(tmp_path: Path) -> None:
+    """W, t_ref and g for the normalisation: from the namelist in /run when the file has no
+    /diagnostics (here W = 2.5 cm, t_ref = 0.2 s, g = 981), from the /diagnostics attributes
+    when it has them (which take precedence)."""
+    plain = tmp_path / "plain.h5"
+    syn.write_run(plain, syn.SHAPES["never"], width=2.5, t_ref=0.2, gravity=981.0,
+                  fields=False)
+    r = dktread.open_run(plain)
+    assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((2.5, 0.2, 981.0, 18.0))
+    assert r.velocity_scale == pytest.approx(math.sqrt(18.0 * 981.0))
+    diag = tmp_path / "diag.h5"
+    syn.write_run(diag, syn.SHAPES["never"], width=2.5, t_ref=0.2, gravity=981.0,
+                  fields=False, diagnostics={"attrs": {
+                      "pattern": "never", "episodes": 0, "open_episode": 0, "width": 3.0,
+                      "t_ref": 0.15, "gravity": 970.0, "h_ref": 17.5}})
+    r = dktread.open_run(diag)
+    assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((3.0, 0.15, 970.0, 17.5))
+
+
+# ---------------------------------------------------------------- pattern.py
+
+
+def test_pattern_cli_text_and_json(tmp_path: Path) -> None:
+    """pattern.py prints the pattern, the episodes (s and t*) with their smallest gaps, the
+    thresholds, gamma and D_h/D_1; --json gives the same as data. Exit status 0."""
+    f = tmp_path / "rep.h5"
+    syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1))
+    proc = script("pattern", f)
+    assert proc.returncode == 0, proc.stderr
+    assert "pattern repeated (2 kissing episodes" in proc.stdout
+    assert "episode 1:" in proc.stdout and "episode 2:" in proc.stdout
+    assert "D_r <= 0.02 cm" in proc.stdout and "D_r > 0.05 cm" in proc.stdout
+    assert "gamma = D_1/D_2 = 2" in proc.stdout
+
+    proc = script("pattern", f, "--json")
+    assert proc.returncode == 0, proc.stderr
+    r = json.loads(proc.stdout)
+    assert r["pattern"] == "repeated" and r["episodes"] == 2 and not r["open_episode"]
+    assert r["gamma"] == pytest.approx(2.0) and r["dh"] == pytest.approx(2.75)
+    th = r["thresholds"]
+    assert th["enter_cm"] == pytest.approx(syn.ENTER)
+    assert th["release_cm"] == pytest.approx(syn.RELEASE)
+    assert th["enter_cells"] == pytest.approx(2.0) and th["release_d1"] == pytest.approx(0.25)
+    for got, (start, end, _) in zip(r["kissing"], expected_episodes("repeated"), strict=True):
+        assert got["start"] == pytest.approx(start, abs=1e-9)
+        assert got["end"] == pytest.approx(end, abs=1e-9)
+        assert got["start_tstar"] == pytest.approx(start / 0.135526)
+        assert got["min_gap"] == pytest.approx(0.005, abs=1e-9)
+        assert got["min_gap_d1"] == pytest.approx(0.005 / 0.2, abs=1e-8)
+
+
+def test_pattern_uses_diagnostics_as_written_unless_thresholds_are_given(tmp_path: Path) -> None:
+    """A file with /diagnostics is reported as written: here the program's thresholds were
+    0.03/0.3 cm, under which the two-dip gap is one episode ('once'), and that is what
+    pattern.py reports, not a reclassification with the defaults. Thresholds on the command
+    line classify again: the defaults give 'repeated'; --release-d1 1.5 alone (release 0.3 cm,
+    enter keeping its default) gives 'once' again."""
+    k = syn.SHAPES["repeated"]
+    start = syn.first_sample_at_or_after(syn.crossing(k, 0, 0.03))
+    end = syn.first_sample_at_or_after(syn.crossing(k, 5, 0.3))
+    f = tmp_path / "diag.h5"
+    syn.write_run(f, k, diagnostics={
+        "attrs": {"pattern": "once", "episodes": 1, "open_episode": 0, "kiss_enter": 0.03,
+                  "kiss_release": 0.3},
+        "episodes": [(start, end)]})
+    r = json.loads(script("pattern", f, "--json").stdout)
+    assert r["pattern"] == "once" and r["episodes"] == 1
+    assert r["thresholds"]["enter_cm"] == pytest.approx(0.03)
+    assert r["thresholds"]["release_cm"] == pytest.approx(0.3)
+    assert r["kissing"][0]["start"] == pytest.approx(start)
+    assert r["kissing"][0]["end"] == pytest.approx(end)
+    assert r["source"] == "as written in /diagnostics"
+
+    r = json.loads(script("pattern", f, "--json", "--enter-cells", "2",
+                          "--release-cells", "4").stdout)
+    assert r["pattern"] == "repeated" and r["episodes"] == 2
+    assert r["thresholds"]["enter_cm"] == pytest.approx(syn.ENTER)
+    assert r["thresholds"]["rule"] == "given on the command line"
+
+    r = json.loads(script("pattern", f, "--json", "--release-d1", "1.5").stdout)
+    assert r["pattern"] == "once"
+    assert r["thresholds"]["enter_cm"] == pytest.approx(syn.ENTER)
+    assert r["thresholds"]["release_cm"] == pytest.approx(0.3)
+
+
+def test_main_is_importable(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each script can be used from Python: main(argv) returns the exit status."""
+    f = tmp_path / "open.h5"
+    syn.write_run(f, syn.SHAPES["open"])
+    assert pattern.main([str(f), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["pattern"] == "once" and r["open_episode"] and r["kissing"][0]["open"]
+    assert r["kissing"][0]["end"] == pytest.approx(syn.T_END)
+    assert gap.main([str(tmp_path / "missing.h5")]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
+
+
+# ---------------------------------------------------------------- plotting scripts
+
+
+@pytest.mark.parametrize("name", list(PLOTS))
+def test_plot_script_writes_png_and_pdf(tmp_path: Path, name: str) -> None:
+    """Each plotting script, run from the command line on a synthetic windowed run, writes the
+    PNG given by -o and, with --pdf, a PDF beside it."""
+    f = tmp_path / "run.h5"
+    syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1))
+    out = tmp_path / "plots" / f"{name}.png"
+    proc = script(name, f, "-o", out, "--pdf")
+    assert proc.returncode == 0, proc.stderr
+    assert_png(out)
+    assert_pdf(out.with_suffix(".pdf"))
+
+
+@pytest.mark.parametrize("name", list(PLOTS))
+def test_plot_script_default_output_is_beside_the_run_file(tmp_path: Path, name: str) -> None:
+    """Without -o the PNG goes beside the run file as <name>_<plot>.png, and no PDF."""
+    f = tmp_path / "case9" / "case9.h5"
+    syn.write_run(f, syn.SHAPES["once"])
+    proc = script(name, f, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert_png(tmp_path / "case9" / f"case9_{PLOTS[name]}.png")
+    assert not list((tmp_path / "case9").glob("*.pdf"))
+
+
+def test_gap_overlays_runs_with_the_label_that_differs(tmp_path: Path) -> None:
+    """gap.py with several runs: the automatic legend names gamma when only gamma differs,
+    D_h/D_1 when only that differs, the run names when neither does; the overlay is drawn."""
+    a, b, c = (tmp_path / n / "case1.h5" for n in ("a", "b", "c"))
+    syn.write_run(a, syn.SHAPES["repeated"], (0.2, 0.2), fields=False)
+    same_dh = [(0.0, 0.45), *syn.SHAPES["repeated"][1:]]  # D_h/D_1 = (0.45 + 0.15)/0.2 = 3
+    syn.write_run(b, same_dh, (0.2, 0.1), fields=False)
+    wide = [(0.0, 0.8), *syn.SHAPES["repeated"][1:]]  # D_h differs, gamma 1 as in a
+    syn.write_run(c, wide, (0.2, 0.2), fields=False)
+    pairs = {k: dktread.pair_of(dktread.open_run(p)) for k, p in zip("abc", (a, b, c),
+                                                                      strict=True)}
+    assert gap.legend_labels([pairs["a"], pairs["b"]], "auto") == ["γ = 1", "γ = 2"]
+    assert gap.legend_labels([pairs["a"], pairs["c"]], "auto") == ["$D_h/D_1$ = 3",
+                                                                    "$D_h/D_1$ = 5"]
+    assert gap.legend_labels([pairs["a"], pairs["a"]], "auto") == ["a/case1", "a/case1"]
+    assert gap.legend_labels([pairs["a"], pairs["b"]], "name") == ["a/case1", "b/case1"]
+    out = tmp_path / "overlay.png"
+    proc = script("gap", a, b, c, "-o", out, "--label", "gamma")
+    assert proc.returncode == 0, proc.stderr
+    assert_png(out)
+
+
+def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None:
+    """field.py's data: the snapshot nearest --time (snapshots at 0, 1.5, 3 s; 1.1 s picks
+    1.5 s), placed at its window offset (extent y from the offset up by ny dx), speed = |u|,
+    nodes inside particles marked, and the particle circles at the /particles sample nearest
+    that time with radius D/2."""
+    import field
+
+    f = tmp_path / "w.h5"
+    s = syn.write_run(f, syn.SHAPES["once"], (0.2, 0.1))
+    snap = dktread.read_field(f, "speed", time=1.1)
+    assert snap.time == pytest.approx(1.5)
+    offset = 10.5 - 0.8 * 1.5
+    assert snap.extent == pytest.approx((0.0, syn.WIDTH, offset, offset + syn.NY_WINDOW * syn.DX))
+    with h5py.File(f) as h5:
+        g = h5["fields"][snap.group]
+        np.testing.assert_allclose(snap.data, np.hypot(g["ux"][()], g["uy"][()]))
+        assert snap.solid is not None and np.array_equal(snap.solid, g["particle"][()] > 0)
+    assert dktread.read_field(f, "rho").time == pytest.approx(syn.T_END)  # default: the last
+    circles, t_ref = field.particle_circles(f, snap.time)
+    i = int(np.argmin(np.abs(syn.T - 1.5)))
+    assert np.ravel(circles) == pytest.approx([s["x"][i, 0], s["y"][i, 0], 0.1,
+                                               s["x"][i, 1], s["y"][i, 1], 0.05])
+    assert t_ref == pytest.approx(0.135526)
+    out = tmp_path / "crop.png"
+    proc = script("field", f, "--field", "pressure", "--time", "1.1", "--ylim", "9", "10",
+                  "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    assert_png(out)
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def _bad_file(kind: str, tmp_path: Path) -> Path:
+    f = tmp_path / f"{kind}.h5"
+    if kind == "not_hdf5":
+        f.write_text("this is a text file, not HDF5\n")
+    elif kind == "foreign_hdf5":
+        with h5py.File(f, "w") as h5:
+            h5["temperature"] = np.arange(10.0)
+    return f
+
+
+@pytest.mark.parametrize("kind", ["missing", "not_hdf5", "foreign_hdf5"])
+@pytest.mark.parametrize("name", SCRIPTS)
+def test_bad_file_gives_one_error_line_and_status_2(tmp_path: Path, name: str, kind: str) -> None:
+    """A missing file, a file that is not HDF5 and an HDF5 file that is not a dktlbm run each
+    give one line `error: <file>: <what>` on stderr, exit status 2 and no traceback."""
+    f = _bad_file(kind, tmp_path)
+    proc = script(name, f, "-o", tmp_path / "x.png") if name in PLOTS else script(name, f)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {f}: "), proc.stderr
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_pair_scripts_refuse_a_single_particle_run(tmp_path: Path) -> None:
+    """gap.py and pattern.py need a pair: a one-particle run is an error (status 2, says so);
+    trajectories.py and drag.py draw it."""
+    f = tmp_path / "single.h5"
+    syn.write_run(f, syn.SHAPES["never"], (0.25,))
+    for name in ("gap", "pattern"):
+        proc = script(name, f)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr
+        assert proc.stderr.startswith(f"error: {f}: ") and "pair needs 2" in proc.stderr
+    for name in ("trajectories", "drag"):
+        proc = script(name, f)
+        assert proc.returncode == 0, proc.stderr
+        assert_png(tmp_path / f"single_{name}.png")
+
+
+@pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
+def test_help(name: str) -> None:
+    """Every script explains its command line with --help."""
+    proc = script(name, "--help")
+    assert proc.returncode == 0 and proc.stdout.startswith("usage:")
+
+
+# ---------------------------------------------------------------- real runs
+
+
+def _all_scripts_on(f: Path, tmp_path: Path) -> dict:
+    for name in PLOTS:
+        out = tmp_path / f"real_{name}.png"
+        proc = script(name, f, "-o", out, "--pdf")
+        assert proc.returncode == 0, f"{name}: {proc.stderr}"
+        assert_png(out)
+        assert_pdf(out.with_suffix(".pdf"))
+    proc = script("pattern", f, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def _without_diagnostics(f: Path, copy: Path) -> Path:
+    """A copy of run file `f` without its /diagnostics group, as files of scenes without a
+    pair (and of earlier versions of the program) are."""
+    copy.write_bytes(f.read_bytes())
+    with h5py.File(copy, "a") as h5:
+        if "diagnostics" in h5:
+            del h5["diagnostics"]
+    return copy
+
+
+def test_real_run_without_diagnostics(tmp_path: Path) -> None:
+    """A small real run of input/uhlmann.nml (two particles given one by one, no &pair group;
+    1 rank), read from a copy of its file without /diagnostics: the reader computes the pair
+    from /particles, starting from the scene's positions (x 0.999 and 1.0, y 6.5 and 7.0 cm,
+    D = 0.25 cm: gamma 1, D_h/D_1 = 2), takes the thresholds from the namelist in /run, and
+    classifies; every script runs on the copy; field.py's default is the last stored
+    snapshot, at the end of the run (0.05 s); the copy counts as a finished run for sweeps.
+    When the program wrote /diagnostics, its thresholds, gap series and pattern are the ones
+    computed from the copy. (tau = 0.52, not 0.6: at 10 spacings per diameter tau = 0.6 stops
+    on the Mach-number guard before 0.05 s.)"""
+    out = tmp_path / "uhl"
+    run("uhlmann.nml", 1, ["lbm.dx=0.025", "lbm.tau=0.52", "run.t_end=0.05",
+                           "output.field_interval=0.025", "output.series_interval=0.005"],
+        out, timeout=120)
+    f = out / "uhlmann.h5"
+    plain = _without_diagnostics(f, tmp_path / "uhlmann.h5")
+    pair = dktread.pair_of(dktread.open_run(plain, need_particles=2))
+    assert pair.source.startswith("computed")
+    assert pair.dr[0] == pytest.approx(math.hypot(0.001, 0.5) - 0.25, abs=1e-9)
+    assert (pair.gamma, pair.dh, pair.d1) == pytest.approx((1.0, 2.0, 0.25))
+    r = _all_scripts_on(plain, tmp_path)
+    assert r["pattern"] == pair.pattern
+    assert dktread.read_field(plain, "vorticity").time == pytest.approx(0.05)
+    assert dktread.run_status(plain) == "finished"
+    with h5py.File(f) as h5:
+        if "diagnostics" not in h5:
+            return
+    written = dktread.pair_of(dktread.open_run(f))
+    assert written.source == "as written in /diagnostics"
+    assert (written.limits.enter, written.limits.release) == pytest.approx(
+        (pair.limits.enter, pair.limits.release))
+    np.testing.assert_allclose(written.dr, pair.dr, atol=1e-9)
+    assert written.pattern == pair.pattern
+
+
+@pytest.mark.skipif(not (ROOT / "input/case0_box.nml").exists(),
+                    reason="input/case0_box.nml is not there yet")
+def test_real_pair_run_diagnostics_agree_with_particles(tmp_path: Path) -> None:
+    """A small real run of input/case0_box.nml on 2 ranks (8 spacings per diameter, 0.3 s):
+    every script runs on it, and the program's /diagnostics agree with what the reader
+    computes from /particles by SPEC §6 and E12: D_x, D_y, D_r, Re_a and C_d of each sample,
+    the thresholds, gamma, D_h/D_1, the pattern and its episodes."""
+    out = tmp_path / "box"
+    run("case0_box.nml", 2, ["lbm.cells_per_diameter=8", "run.t_end=0.3",
+                             "output.field_interval=0.1"], out, timeout=300)
+    f = out / "case0_box.h5"
+    r = _all_scripts_on(f, tmp_path)
+    with h5py.File(f) as h5:
+        if "diagnostics" not in h5:
+            pytest.skip("this build does not write /diagnostics yet")
+    written = dktread.pair_of(dktread.open_run(f))
+    computed = dktread.pair_of(dktread.open_run(f), from_particles=True)
+    assert written.source == "as written in /diagnostics"
+    np.testing.assert_allclose(written.t, computed.t, atol=1e-12)
+    for name in ("dx", "dy", "dr"):
+        np.testing.assert_allclose(getattr(written, name), getattr(computed, name), atol=1e-9)
+    np.testing.assert_allclose(written.re, computed.re, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(written.cd, computed.cd, rtol=1e-9, atol=1e-9)  # NaN at rest
+    assert (written.limits.enter, written.limits.release) == pytest.approx(
+        (computed.limits.enter, computed.limits.release))
+    assert (written.gamma, written.dh) == pytest.approx((computed.gamma, computed.dh))
+    assert written.pattern == computed.pattern == r["pattern"]
+    assert [t for e in written.episodes for t in (e.start, e.end)] == pytest.approx(
+        [t for e in computed.episodes for t in (e.start, e.end)])

@@ -1,0 +1,241 @@
+"""postproc/sweep.py: the value lists, the plan (runs.csv), the Slurm job array (run with a
+stand-in srun), collecting patterns into the regime map from synthetic run directories, and
+running a one-run plan of a small real scene here. Each test's docstring says what it
+proves."""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import os
+import shlex
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import synthetic as syn
+
+import sweep
+from dkt_run import EXE, ROOT, mpi_env
+
+SWEEP = ROOT / "postproc" / "sweep.py"
+BASE_TEXT = """! a pair scene for the plan tests (never run)
+&pair
+  gamma = 2.0, dh = 4.0
+/
+"""
+
+
+def sweep_cli(*args: str | Path, env: dict[str, str] | None = None,
+              timeout: float = 120.0) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout,
+                          env={**os.environ, "MPLBACKEND": "Agg", **(env or {})})
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture
+def base(tmp_path: Path) -> Path:
+    path = tmp_path / "pairscene.nml"
+    path.write_text(BASE_TEXT)
+    return path
+
+
+def test_value_lists_and_inclusive_ranges() -> None:
+    """--gamma/--dh values: comma lists, inclusive start:stop:step ranges (also when the step
+    does not divide exactly in binary, 0.1:0.3:0.1 has three values), mixtures, each value
+    once; nonsense is refused."""
+    assert sweep.parse_values("1.5,2,2.5") == [1.5, 2.0, 2.5]
+    assert sweep.parse_values("1:3:0.5") == [1.0, 1.5, 2.0, 2.5, 3.0]
+    assert sweep.parse_values("0.1:0.3:0.1") == pytest.approx([0.1, 0.2, 0.3])
+    assert sweep.parse_values("1,2:4:1,4") == [1.0, 2.0, 3.0, 4.0]
+    assert sweep.parse_values("1:2.9:1") == [1.0, 2.0]
+    for bad in ("", "a", "1:2", "3:1:0.5", "1:3:0", "-1", "1:3:-1"):
+        with pytest.raises(ValueError):
+            sweep.parse_values(bad)
+
+
+def test_plan_writes_one_row_per_combination(tmp_path: Path, base: Path) -> None:
+    """plan: runs.csv holds one row per (gamma, D_h/D_1) combination, with its own output
+    directory <out>/<id> and the command `EXE BASE --set pair.gamma=G --set pair.dh=H --set
+    <pass-through>... --set output.dir=<out>/<id>`."""
+    out = tmp_path / "sw"
+    proc = sweep_cli("plan", base, "--gamma", "1:2:0.5", "--dh", "2,4", "--set",
+                     "lbm.cells_per_diameter=8", "--set", "run.t_end=0.3", "--out", out,
+                     "--exe", "/opt/dkt/dktlbm")
+    assert proc.returncode == 0, proc.stderr
+    rows = read_csv(out / "runs.csv")
+    assert list(rows[0]) == ["id", "gamma", "dh", "dir", "command"]
+    combos = list(itertools.product([1.0, 1.5, 2.0], [2.0, 4.0]))
+    assert [(float(r["gamma"]), float(r["dh"])) for r in rows] == combos
+    assert len({r["id"] for r in rows}) == len(rows)
+    for r, (g, h) in zip(rows, combos, strict=True):
+        run_dir = out.resolve() / r["id"]
+        assert Path(r["dir"]) == run_dir
+        assert shlex.split(r["command"]) == [
+            "/opt/dkt/dktlbm", str(base.resolve()),
+            "--set", f"pair.gamma={g:g}", "--set", f"pair.dh={h:g}",
+            "--set", "lbm.cells_per_diameter=8", "--set", "run.t_end=0.3",
+            "--set", f"output.dir={run_dir}"]
+
+
+def test_plan_without_lists_is_one_run_with_the_scene_values(tmp_path: Path,
+                                                               base: Path) -> None:
+    """plan with neither --gamma nor --dh: one run of the base scene as it is (no pair.*
+    overrides); its gamma and D_h/D_1 columns are the scene's (2 and 4), a --set of pair.dh
+    taking precedence over the scene; the default executable is this tree's build/dktlbm (or
+    dktlbm on PATH)."""
+    out = tmp_path / "one"
+    proc = sweep_cli("plan", base, "--set", "pair.dh=6", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    (row,) = read_csv(out / "runs.csv")
+    assert (row["gamma"], row["dh"]) == ("2", "6")
+    args = shlex.split(row["command"])
+    assert args[0] == sweep.default_exe()
+    assert "pair.gamma=2" not in args and args.count("--set") == 2
+
+
+def test_plan_refuses_a_missing_scene_and_bad_lists(tmp_path: Path, base: Path) -> None:
+    """A missing base scene is one `error:` line with status 2; a bad range is refused by the
+    command line (status 2); neither writes runs.csv."""
+    out = tmp_path / "bad"
+    proc = sweep_cli("plan", tmp_path / "nope.nml", "--out", out)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: ")
+    assert str(tmp_path / "nope.nml") in proc.stderr and "Traceback" not in proc.stderr
+    proc = sweep_cli("plan", base, "--gamma", "3:1:1", "--out", out)
+    assert proc.returncode == 2 and "--gamma" in proc.stderr
+    assert not (out / "runs.csv").exists()
+    proc = sweep_cli("run", "--out", out)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: ")
+    assert "runs.csv" in proc.stderr
+
+
+def test_slurm_array_runs_row_k_with_srun(tmp_path: Path, base: Path) -> None:
+    """slurm: sweep.slurm is a job array 0..n-1 with the requested ranks, time and partition
+    and the --signal=B:USR1@120 option with its reason; run by bash as array task k (with a
+    stand-in srun that records its arguments) it runs exactly row k's command through srun,
+    logging to <out>/<id>/run.log; a task number beyond the plan fails."""
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "1,2,3", "--dh", "2,4", "--set",
+                     "particles.x=0.9,1.1", "--out", out, "--exe", "/x/dktlbm").returncode == 0
+    proc = sweep_cli("slurm", "--out", out, "--ntasks", "8", "--time", "02:00:00",
+                     "--partition", "short")
+    assert proc.returncode == 0, proc.stderr
+    text = (out / "sweep.slurm").read_text()
+    lines = text.splitlines()
+    assert lines[0] == "#!/bin/bash"
+    for option in ("--array=0-5", "--ntasks=8", "--time=02:00:00", "--partition=short",
+                   "--signal=B:USR1@120"):
+        assert f"#SBATCH {option}" in lines, option
+    at = lines.index("#SBATCH --signal=B:USR1@120")
+    reason = list(itertools.takewhile(lambda ln: ln.startswith("# "), reversed(lines[:at])))
+    assert "SIGUSR1" in " ".join(reason) and "checkpoint" in " ".join(reason)
+
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    record = tmp_path / "srun.args"
+    srun = fake / "srun"
+    srun.write_text(f'#!/bin/bash\nprintf "%s\\n" "$@" > {shlex.quote(str(record))}\n'
+                    'echo "stand-in srun ran"\n')
+    srun.chmod(srun.stat().st_mode | stat.S_IEXEC)
+    rows = read_csv(out / "runs.csv")
+    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}", "SLURM_ARRAY_TASK_ID": "4"}
+    proc = subprocess.run(["bash", str(out / "sweep.slurm")], capture_output=True, text=True,
+                          env=env, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert record.read_text().splitlines() == shlex.split(rows[4]["command"])
+    assert "stand-in srun ran" in (out / rows[4]["id"] / "run.log").read_text()
+
+    env["SLURM_ARRAY_TASK_ID"] = "6"
+    proc = subprocess.run(["bash", str(out / "sweep.slurm")], capture_output=True, text=True,
+                          env=env, timeout=60)
+    assert proc.returncode != 0
+
+
+def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> None:
+    """collect: one regime.csv row per planned run with the pattern read from the run file
+    (from /diagnostics when written; computed from /particles for a finished file without
+    it), the number of episodes and the first kissing time; 'failed' for a file that is not
+    a finished run, 'missing' for a run without a file; regime.png is drawn."""
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "1:3:1", "--dh", "2,4", "--out",
+                     out).returncode == 0
+    plan = read_csv(out / "runs.csv")
+    k = syn.SHAPES
+
+    def file_of(row: dict[str, str]) -> Path:
+        return out / row["id"] / "pairscene.h5"
+
+    def written(pattern: str, episodes: list[tuple[float, float]]) -> dict:
+        return {"attrs": {"pattern": pattern, "episodes": len(episodes), "open_episode": 0},
+                "episodes": episodes}
+
+    syn.write_run(file_of(plan[0]), k["repeated"], fields=False,
+                  diagnostics=written("repeated", [(0.96, 1.45), (1.94, 2.07)]))
+    syn.write_run(file_of(plan[1]), k["once"], fields=False,
+                  diagnostics=written("once", [(0.97, 1.46)]))
+    syn.write_run(file_of(plan[2]), k["never"], fields=False, diagnostics=written("never", []))
+    syn.write_run(file_of(plan[3]), k["once"], fields=False)  # finished, no /diagnostics
+    syn.write_run(file_of(plan[4]), k["repeated"], fields=False, finished=False)
+    # plan[5]: never run
+
+    proc = sweep_cli("collect", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    rows = read_csv(out / "regime.csv")
+    assert list(rows[0]) == ["gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir"]
+    assert [(r["gamma"], r["dh"]) for r in rows] == [(p["gamma"], p["dh"]) for p in plan]
+    assert [r["pattern"] for r in rows] == ["repeated", "once", "never", "once", "failed",
+                                            "missing"]
+    assert [r["episodes"] for r in rows] == ["2", "1", "0", "1", "", ""]
+    assert float(rows[0]["first_kiss_t"]) == pytest.approx(0.96)
+    assert rows[2]["first_kiss_t"] == ""
+    first = syn.first_sample_at_or_after(syn.crossing(k["once"], 0, syn.ENTER))
+    assert float(rows[3]["first_kiss_t"]) == pytest.approx(first)
+    assert [Path(r["dir"]).name for r in rows] == [p["id"] for p in plan]
+    png = out / "regime.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 2000
+
+
+UHLMANN_SETS = ["lbm.dx=0.025", "lbm.tau=0.52", "run.t_end=0.05",
+                "output.field_interval=0.025", "output.series_interval=0.005"]
+
+
+def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path: Path) -> None:
+    """run on a one-run plan of a small real scene (input/uhlmann.nml, about a second): the run
+    finishes, its output is in <out>/<id>/run.log; a second `run` skips it (file untouched),
+    --force runs it again (replacing the file). A plan whose run fails (tau = 0.4 is invalid)
+    gives a non-zero exit, the failure reported, and the program's message in run.log."""
+    out = tmp_path / "sw"
+    sets = [a for s in UHLMANN_SETS for a in ("--set", s)]
+    scene = ROOT / "input" / "uhlmann.nml"
+    assert sweep_cli("plan", scene, *sets, "--out", out, "--exe", EXE).returncode == 0
+    env = mpi_env()
+    proc = sweep_cli("run", "--out", out, "--ranks", "1", env=env, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    (row,) = read_csv(out / "runs.csv")
+    h5 = out / row["id"] / "uhlmann.h5"
+    assert h5.is_file() and "performance" in (out / row["id"] / "run.log").read_text()
+    stamp = h5.stat().st_mtime_ns
+
+    proc = sweep_cli("run", "--out", out, env=env, timeout=300)
+    assert proc.returncode == 0 and "skip" in proc.stdout
+    assert h5.stat().st_mtime_ns == stamp
+
+    proc = sweep_cli("run", "--out", out, "--force", env=env, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert h5.stat().st_mtime_ns != stamp
+
+    bad = tmp_path / "bad"
+    assert sweep_cli("plan", scene, *sets, "--set", "lbm.tau=0.4", "--out", bad, "--exe",
+                     EXE).returncode == 0
+    proc = sweep_cli("run", "--out", bad, env=env, timeout=300)
+    assert proc.returncode != 0
+    assert "FAILED" in proc.stdout and "1 failed" in proc.stdout
+    (row,) = read_csv(bad / "runs.csv")
+    assert "tau" in (bad / row["id"] / "run.log").read_text()
