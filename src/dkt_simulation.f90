@@ -360,7 +360,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     real(wp), pointer, contiguous :: tmp(:, :, :)
     integer :: n, nyl, nx, nxp, last_progress
-    real(wp) :: t, mach, t_start, t_last
+    real(wp) :: t, mach, t_start, t_last, y0
     logical :: last
     character(len=256) :: line
 
@@ -393,12 +393,16 @@ contains
         sim%f_next => tmp
         sim%step = n
         t = n*lp%dt
-        if (sim%window_on) call follow_particles(sim, n)
+        y0 = 0.0_wp
+        if (sim%window_on) then
+          call follow_particles(sim, n)
+          y0 = window_offset(sim%win, lp%dx)
+        end if
         if (sim%pair_on) call pair_sample(sim, n)
         last = n == lp%steps .or. len(sim%stopped_early) > 0
 
         if (mod(n, cfg%run%guard_every) == 0 .or. last) &
-          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
+          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, mach)
         if (lp%field_every > 0) then
           if (mod(n, lp%field_every) == 0 .and. .not. last) call write_fields(sim, n)
         end if
@@ -409,7 +413,8 @@ contains
           if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
             if (mod(n, cfg%run%guard_every) /= 0) &
-              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, mach)
+              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
+                               mach)
             call progress(n, last_progress, t_last, t_start, mach)
           end if
         end if
