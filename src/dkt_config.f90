@@ -463,7 +463,8 @@ contains
       if (c%window%enabled) then
         if (count(p%motion(1:p%count) == 'free') == 0) then
           err = origin_of(reg, 'window', 'enabled', c%file)//': &window enabled = .true. '// &
-                'with '//itoa(p%count)//' free particles: the window follows the lowest '// &
+                'with '//itoa(count(p%motion(1:p%count) == 'free'))//' free particles '// &
+                '(count = '//itoa(p%count)//'): the window follows the lowest '// &
                 'free particle; allowed: a scene with free particles (&particles or &pair)'
           return
         end if
@@ -542,9 +543,10 @@ contains
       call check_particle(j)
       if (len(err) > 0) return
     end do
-    call check_contacts()
-    if (len(err) > 0) return
+    ! a pair too close is the user's pair.dh, before it shows as an overlap of &particles
     if (c%pair%gamma > 0.0_wp) call check_pair()
+    if (len(err) > 0) return
+    call check_contacts()
     if (len(err) > 0) return
     if (c%window%enabled) call check_window()
     if (len(err) > 0) return
@@ -746,7 +748,7 @@ contains
                 fmt_real(q%dh*q%d1)//' cm with d1 = '//val('pair', 'd1')//', gamma = '// &
                 val('pair', 'gamma')//': the pair starts within the contact distance '// &
                 '(D_1 + D_2)/2 + collision.range dx = '//fmt_real(contact)//' cm; allowed: '// &
-                'dh > '//fmt_real(dh_min)
+                'dh > '//fmt_real(round_up(dh_min))
       end associate
     end subroutine check_pair
 
@@ -767,7 +769,8 @@ contains
                   'spans y = '//fmt_real(y_lo)//' .. '//fmt_real(y_hi)//' cm, but particle '// &
                   itoa(k)//' (y = '//fmt_real(p%y(k))//', diameter '// &
                   fmt_real(p%diameter(k))//') with the margin of '//val('window', 'margin')// &
-                  ' D_1 reaches '//fmt_real(top)//' cm; allowed: above >= '//fmt_real(need)
+                  ' D_1 reaches '//fmt_real(top)//' cm; allowed: above >= '// &
+                  fmt_real(round_up(need))
             return
           end if
         end do
@@ -808,6 +811,7 @@ contains
         t_need = gap/(0.1_wp*u_g) + 5.0_wp*maxval(p%diameter(1:2))/u_g
         t_run = lp%steps*lp%dt
         if (t_run >= t_need) return
+        if (c%run%steps == 0) t_run = c%run%t_end ! as typed, not steps x dt
         if (len(warnings) > 0) warnings = warnings//NL
         warnings = warnings//src('t_end', 'run')//': &run t_end = '//fmt_real(t_run)// &
                    ' s may be too short to classify the DKT pattern of particles 1 and 2: '// &
@@ -816,6 +820,13 @@ contains
                    ' s; a pattern ''never'' or ''once'' may only mean the run stopped early'
       end associate
     end subroutine check_duration
+
+    !> x rounded up to three decimals (a bound printed without round-off noise that still
+    !! holds: 21.499999999999993 -> 21.5)
+    pure real(wp) function round_up(x)
+      real(wp), intent(in) :: x
+      round_up = ceiling(x*1000.0_wp - 1.0e-6_wp)/1000.0_wp
+    end function round_up
 
     !> 'key(k) = a and key(m) = b'
     function pair(key, k, m) result(s)

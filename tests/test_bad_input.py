@@ -10,8 +10,9 @@ status, so a rank left waiting while rank 0 stops is reaped by the launcher, not
 time limit catches a job in which no rank gets out (e.g. rank 0 blocked in MPI_Finalize while
 another rank waits in a collective, or every rank waiting for a broadcast that never comes).
 
-The scenes are small edits of input/poiseuille.nml (20 x 6 cells) written into tmp_path; the
-expected pieces of each message are derived from the edit, not copied from the program.
+The scenes are small edits of input/poiseuille.nml (20 x 6 cells) written into tmp_path, or, for
+the DKT keys (&pair, &window, lbm.cells_per_diameter), of input/case1.nml and input/single.nml;
+the expected pieces of each message are derived from the edit, not copied from the program.
 """
 
 from __future__ import annotations
@@ -42,10 +43,12 @@ def dkt(args: list[str], cwd: Path, ranks: int = RANKS):
     return run_args(args, ranks, TIMEOUT, cwd, ENV)
 
 
-def write_scene(tmp_path: Path, old: str | None = None, new: str = "") -> tuple[Path, int]:
-    """The base scene with `old` replaced by `new` (once) as tmp_path/bad.nml, and the 1-based
-    line number of the edit (0 when nothing was edited)."""
-    text = BASE
+def write_scene(
+    tmp_path: Path, old: str | None = None, new: str = "", base: str | None = None
+) -> tuple[Path, int]:
+    """The base scene (or the scene `base` of input/) with `old` replaced by `new` (once) as
+    tmp_path/bad.nml, and the 1-based line number of the edit (0 when nothing was edited)."""
+    text = BASE if base is None else (INPUT / base).read_text()
     line = 0
     if old is not None:
         assert text.count(old) == 1, f"{old!r} must occur once in the base scene"
@@ -92,6 +95,7 @@ class Case:
     args: list[str] = field(default_factory=list)
     pieces: list[str] = field(default_factory=list)
     no_file: bool = False  # pass no scene file on the command line
+    base: str | None = None  # a scene of input/ to start from instead of the base scene
 
 
 LBM_KEYS = "dx, tau, collision, s_e, s_eps, s_q"  # input/README.md, &lbm
@@ -183,6 +187,72 @@ CASES = {
     "dx-does-not-fit-width": Case(
         "dx = 0.05", "dx = 0.03", pieces=["{file}", "&domain", "width", "&lbm", "dx = 0.03"]
     ),
+    # ---- the DKT keys (input/README.md, &pair, &window, &lbm cells_per_diameter)
+    # the diameter ratio is D_1/D_2 with D_1 the larger: below 1 is a range error
+    "pair-gamma-below-1": Case(
+        args=["--set", "pair.gamma=0.5"],
+        base="case1.nml",
+        pieces=["{file}", "--set pair.gamma=0.5", "&pair", "gamma = 0.5", "1 <= gamma <= 100"],
+    ),
+    # D_h = 1.0 D_1 with gamma = 1: the centres start exactly one diameter apart, the disks
+    # touch; the bound is checked in test_pair_dh_bound_is_the_contact_distance below
+    "pair-dh-at-contact": Case(
+        args=["--set", "pair.gamma=1", "--set", "pair.dh=1.0"],
+        base="case1.nml",
+        pieces=["{file}", "--set pair.dh=1.0", "&pair", "dh = 1.0", "contact", "allowed: dh >"],
+    ),
+    # D_h = 20 D_1 puts the upper disk 4 cm above the lower one, beyond the 15 D_1 (3 cm) the
+    # window holds above the lowest centre
+    "window-above-too-small": Case(
+        args=["--set", "pair.dh=20", "--set", "window.above=15"],
+        base="case1.nml",
+        pieces=[
+            "{file}",
+            "--set window.above=15",
+            "&window",
+            "above = 15",
+            "particle 1",
+            "allowed: above >=",
+        ],
+    ),
+    # a pair scene writes particles 1 and 2 itself
+    "pair-with-particles-count": Case(
+        args=["--set", "particles.count=2"],
+        base="case1.nml",
+        pieces=[
+            "{file}",
+            "--set particles.count=2",
+            "&pair",
+            "gamma = 2.0",
+            "count = 2",
+            "count = 0",
+        ],
+    ),
+    # dx from the smallest particle's diameter needs a particle
+    "cells-per-diameter-without-particles": Case(
+        args=["--set", "lbm.cells_per_diameter=12"],
+        pieces=[
+            "{file}",
+            "--set lbm.cells_per_diameter=12",
+            "&lbm",
+            "cells_per_diameter = 12",
+            "without particles",
+            "allowed: 0",
+        ],
+    ),
+    # the window follows the lowest free particle: a fixed disk alone leaves nothing to follow
+    "window-with-a-fixed-particle-only": Case(
+        args=["--set", "particles.motion(1)=fixed", "--set", "window.enabled=.true."],
+        base="single.nml",
+        pieces=[
+            "{file}",
+            "--set window.enabled=.true.",
+            "&window",
+            "enabled = .true.",
+            "0 free particles",
+            "allowed:",
+        ],
+    ),
 }
 
 
@@ -193,7 +263,7 @@ def test_bad_input_stops_every_rank_with_one_clear_message_and_no_output(
     """Catches: a missing or vague message (no file/line, group, key, value or range), a
     message per rank, exit status 0, a job that never ends (timeout), output written before the
     input was validated."""
-    scene, line = write_scene(tmp_path, case.old, case.new)
+    scene, line = write_scene(tmp_path, case.old, case.new, case.base)
     outdir = tmp_path / "out"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -234,6 +304,71 @@ def test_dx_that_does_not_fit_gets_a_suggestion_that_fits(tmp_path: Path) -> Non
     assert abs(cells - round(cells)) < 1e-6 and round(cells) >= 3, msg
     # and the suggestion is near the dx asked for (the nearest whole count of cells)
     assert round(cells) in (math.floor(1.0 / 0.03), math.ceil(1.0 / 0.03)), msg
+
+
+def test_pair_dh_bound_is_the_contact_distance(tmp_path: Path) -> None:
+    """The smallest D_h offered is (D_1 + D_2)/2 + collision.range dx, in D_1: with gamma = 1,
+    D_1 = 0.2 cm, 25 spacings per diameter (dx = 2 cm/250) and range 1, that is 1 + 0.008/0.2
+    = 1.04. Catches a bound computed with D_1 in place of the mean radius sum, or without the
+    contact range; just above the bound the scene is accepted, just below it refused."""
+    common = ["--set", "pair.gamma=1", "--set", "collision.range=1"]
+    common += ["--set", "lbm.cells_per_diameter=25"]
+    scene, _ = write_scene(tmp_path, base="case1.nml")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    outdir = tmp_path / "out"
+    proc = dkt([str(scene), *common, "--set", "pair.dh=1.0", "--set", f"output.dir={outdir}"], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    bound = number_after("allowed: dh >", msg)
+    dx = 2.0 / round(2.0 * 25 / 0.2)
+    assert bound == pytest.approx((0.2 + 1.0 * dx) / 0.2, rel=1e-9), msg
+    ok = dkt([str(scene), *common, "--set", f"pair.dh={bound * (1 + 1e-6)}", "--check"], cwd)
+    assert ok.returncode == 0, ok.stderr
+    low = dkt([str(scene), *common, "--set", f"pair.dh={bound * (1 - 1e-6)}", "--check"], cwd)
+    assert low.returncode != 0 and "&pair" in low.stderr, low.stderr
+
+
+def test_window_above_bound_holds_the_particles(tmp_path: Path) -> None:
+    """The bound offered for window.above fits: case1 with D_h = 20 D_1 has the upper disk
+    (D_1 = 0.2 cm) 20 D_1 above the lower one, so with the 1 D_1 margin the window needs
+    20 + 0.5 + 1 = 21.5 D_1 above the lowest centre; the message says so, 21.5 (+ round-off)
+    is accepted, 21.4 refused. Catches a bound that forgets the radius or the margin."""
+    scene, _ = write_scene(tmp_path, base="case1.nml")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    outdir = tmp_path / "out"
+    common = [str(scene), "--set", "pair.dh=20", "--set", "pair.d1=0.2", "--set", "pair.gamma=2"]
+    common += ["--set", "pair.upper=larger", "--set", "window.margin=1"]
+    proc = dkt([*common, "--set", "window.above=15", "--set", f"output.dir={outdir}"], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    bound = number_after("allowed: above >=", msg)
+    assert bound == pytest.approx(20 + 0.5 + 1.0, rel=1e-9), msg
+    fits = dkt([*common, "--set", "window.above=21.5001", "--check"], cwd)
+    assert fits.returncode == 0, fits.stderr
+    short = dkt([*common, "--set", "window.above=21.4", "--check"], cwd)
+    assert short.returncode != 0 and "&window" in short.stderr, short.stderr
+
+
+def test_a_pair_run_too_short_to_classify_is_warned_about_but_allowed(tmp_path: Path) -> None:
+    """--check of case1 with run.t_end = 0.1 s (the pair needs seconds to draft, kiss and
+    tumble): exit 0, one warning naming the file, &run t_end and 'too short to classify', no
+    error, nothing written. The case1 default t_end gives no such warning (the control)."""
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    args = [str(INPUT / "case1.nml"), "--check", "--set", f"output.dir={outdir}"]
+    proc = dkt([*args, "--set", "run.t_end=0.1"], cwd)
+    assert proc.returncode == 0, proc.stderr
+    assert error_lines(proc.stderr) == [], proc.stderr
+    warnings = [ln for ln in proc.stderr.splitlines() if "too short to classify" in ln]
+    assert len(warnings) == 1, proc.stderr
+    assert warnings[0].startswith("dktlbm: warning"), warnings[0]
+    for piece in [str(INPUT / "case1.nml"), "--set run.t_end=0.1", "&run", "t_end"]:
+        assert piece in warnings[0], f"{piece!r} missing from the warning:\n{warnings[0]}"
+    assert not outdir.exists() and list(cwd.iterdir()) == [], "--check wrote output"
+    control = dkt(args, cwd)
+    assert control.returncode == 0, control.stderr
+    assert "too short to classify" not in control.stderr, control.stderr
 
 
 def test_missing_namelist_file(tmp_path: Path) -> None:
