@@ -287,10 +287,10 @@ SLURM_TEMPLATE = """#!/bin/bash
 #SBATCH --ntasks={ntasks}
 #SBATCH --time={time}
 #SBATCH --output={out}/slurm-%A_%a.out
-{extra}# --signal=B:USR1@120: Slurm sends SIGUSR1 to this batch shell 120 s before the time limit.
-# dktlbm is to write a checkpoint on SIGUSR1; until it does, the trap below only notes the
-# signal in the run's log, so the run continues to the time limit as without the option.
-# Once it does, forward the signal to the run: kill -USR1 "$pid" inside the trap.
+{extra}# --signal=B:USR1@120: Slurm sends SIGUSR1 to this batch shell 120 s before the time limit;
+# the trap below passes it on to the run, which writes a checkpoint and exits 0. Resume a task
+# with its command plus --restart "$(cat <dir>/<name>.checkpoint)"; input/slurm/sweep_array.slurm
+# does that by itself (it resubmits each unfinished task from its last checkpoint).
 #SBATCH --signal=B:USR1@120
 set -u
 {setup}RUNS={runs}
@@ -309,7 +309,7 @@ mkdir -p "$OUT/$id"
 log="$OUT/$id/run.log"
 eval "set -- $command"
 echo "# srun $*" > "$log"
-trap 'echo "sweep: SIGUSR1 from Slurm, the time limit is 120 s away" >> "$log"' USR1
+trap 'echo "sweep: SIGUSR1 from Slurm: checkpoint and stop" >> "$log"; kill -USR1 "$pid"' USR1
 srun "$@" >> "$log" 2>&1 &
 pid=$!
 while true; do

@@ -128,6 +128,11 @@ module dkt_config
     integer :: progress_every = 1000      !! steps between progress lines; 0 = none
     integer :: guard_every = 100          !! steps between NaN/Mach guards
     real(wp) :: mach_limit = 0.3_wp       !! largest allowed u/c_s
+    integer :: checkpoint_every = 0       !! steps between checkpoints; 0 = none by steps
+    real(wp) :: checkpoint_wall = 0.0_wp  !! s of wall time between checkpoints; 0 = none
+    integer :: checkpoint_keep = 2        !! checkpoints kept (older ones are removed)
+    real(wp) :: wall_limit = 0.0_wp       !! s of wall time after which the run checkpoints
+                                          !! and stops; 0 = no limit
   end type run_cfg_t
 
   !> &output: where and how often results are written.
@@ -191,12 +196,15 @@ module dkt_config
     logical :: print_defaults = .false.
     logical :: help = .false.
     logical :: version = .false.
+    character(len=:), allocatable :: restart         !! checkpoint to resume from; '' = none
   end type cli_t
 
   character(len=*), parameter :: USAGE = 'usage: dktlbm FILE [--set group.key=value ...] '// &
-                                 '[--check] [--print-defaults] [--help] [--version]'
+                                 '[--restart CHECKPOINT] [--check] [--print-defaults] '// &
+                                 '[--help] [--version]'
   character(len=*), parameter :: OPTIONS = '--set group.key=value, --set=group.key=value, '// &
-                                 '--check, --print-defaults, --help, --version'
+                                 '--restart CHECKPOINT, --check, --print-defaults, --help, '// &
+                                 '--version'
   character(len=*), parameter :: NL = new_line('a')
   real(wp), parameter :: WHOLE_TOL = 1.0e-6_wp !! how close width/dx must be to a whole number
   real(wp), parameter :: MAX_CELLS = 1.0e9_wp  !! more cells on one axis is surely a typing error
@@ -348,6 +356,14 @@ contains
     call add_real(reg, 'run', 'mach_limit', c%run%mach_limit, '-', &
                   'largest allowed Mach number u/c_s before the run is stopped', &
                   gt=0.0_wp, le=1.0_wp)
+    call add_integer(reg, 'run', 'checkpoint_every', c%run%checkpoint_every, '-', &
+                     'time steps between checkpoints; 0 = none by step count', ge=0)
+    call add_real(reg, 'run', 'checkpoint_wall', c%run%checkpoint_wall, 's', &
+                  'wall-clock time between checkpoints; 0 = none by wall time', ge=0.0_wp)
+    call add_integer(reg, 'run', 'checkpoint_keep', c%run%checkpoint_keep, '-', &
+                     'newest checkpoints kept; older ones are deleted', ge=1)
+    call add_real(reg, 'run', 'wall_limit', c%run%wall_limit, 's', 'after this wall-clock '// &
+                  'time the run writes a checkpoint and stops (exit 0); 0 = no limit', ge=0.0_wp)
 
     call add_string(reg, 'output', 'dir', c%output%dir, &
                     'output directory; empty = runs/<namelist basename>')
@@ -988,6 +1004,7 @@ contains
     integer :: j
     err = ''
     cli%nml_file = ''
+    cli%restart = ''
     allocate (cli%overrides(0))
     j = 0
     do while (j < size(args))
@@ -1001,6 +1018,14 @@ contains
         end if
         j = j + 1
         call add_override(trim(args(j)))
+      case ('--restart')
+        if (j == size(args)) then
+          err = 'option --restart needs a checkpoint file: --restart runs/case1/'// &
+                'case1_chk_000010000.h5'
+          return
+        end if
+        j = j + 1
+        cli%restart = trim(args(j))
       case ('--check')
         cli%check = .true.
       case ('--print-defaults')
@@ -1012,6 +1037,8 @@ contains
       case default
         if (index(arg, '--set=') == 1) then
           call add_override(arg(7:))
+        else if (index(arg, '--restart=') == 1) then
+          cli%restart = arg(11:)
         else if (index(arg, '-') == 1 .and. len(arg) > 1) then
           err = 'unknown option '''//arg//'''; options: '//OPTIONS//NL//USAGE
         else if (len(cli%nml_file) > 0) then
@@ -1095,6 +1122,8 @@ contains
       '  --set group.key=value  set one key after FILE is read (also --set=group.key=value);', &
       '                         repeatable; array elements as key(2)=value; strings need no', &
       '                         quotes, e.g. --set lbm.tau=0.7 --set output.dir=/tmp/run', &
+      '  --restart CHECKPOINT   resume the run from a checkpoint file it wrote (same FILE', &
+      '                         and --set options; any number of ranks); the output continues', &
       '  --check                validate, print the derived lattice parameters and exit', &
       '  --print-defaults       print every key with its default, unit, allowed values and', &
       '                         meaning, as a namelist file, and exit', &

@@ -1,10 +1,12 @@
 !> The little the code needs from the file system that Fortran does not offer: creating a
-!> directory path (POSIX mkdir through C interoperability) and testing for existence.
+!> directory path (POSIX mkdir through C interoperability), testing for existence, renaming a
+!> file in one step (POSIX rename: a reader sees the old file or the new one, never a part) and
+!> deleting one.
 module dkt_filesystem
   use iso_c_binding, only: c_char, c_int, c_null_char
   implicit none
   private
-  public :: make_directories, path_exists
+  public :: make_directories, path_exists, rename_file, remove_file
 
   interface
     integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
@@ -12,9 +14,30 @@ module dkt_filesystem
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int), value :: mode
     end function c_mkdir
+    integer(c_int) function c_rename(old, new) bind(C, name='rename')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: old(*), new(*)
+    end function c_rename
   end interface
 
 contains
+
+  !> Rename `old` to `new`, replacing `new` atomically; false if it failed.
+  logical function rename_file(old, new)
+    character(len=*), intent(in) :: old, new
+    rename_file = c_rename(old//c_null_char, new//c_null_char) == 0
+  end function rename_file
+
+  !> Delete the file at `path` if there is one.
+  subroutine remove_file(path)
+    character(len=*), intent(in) :: path
+    integer :: u, ios
+    logical :: exists
+    inquire (file=path, exist=exists)
+    if (.not. exists) return
+    open (newunit=u, file=path, status='old', iostat=ios)
+    if (ios == 0) close (u, status='delete', iostat=ios)
+  end subroutine remove_file
 
   !> True if a file or directory exists at path.
   logical function path_exists(path)

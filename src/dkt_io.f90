@@ -2,8 +2,9 @@
 !> field snapshots (/fields/NNNNNN/<field>), small time series (/<group>/<name>, h5py shape
 !> (n_samples,)), tables with one column per particle (/<group>/<name>, h5py shape (n_samples,
 !> ncols)) and attributes on any group or dataset, plus the `<dir>/<name>.xdmf` sidecar (module
-!> dkt_xdmf) that lets ParaView/VisIt open the fields. All HDF5 of dktlbm lives here; every HDF5
-!> return code is checked.
+!> dkt_xdmf) that lets ParaView/VisIt open the fields, and its continuation when a run resumes
+!> from a checkpoint (io_reopen; the checkpoint files themselves are dkt_checkpoint's). Every
+!> HDF5 return code is checked.
 !>
 !> The solver is decomposed in 1-D slabs along y: a rank holds global rows y0+1 .. y0+nyl of
 !> every field, all nx columns, as a contiguous array (nx, nyl). Each rank writes its rows into a
@@ -31,11 +32,13 @@ module dkt_io
                   H5S_SELECT_SET_F, H5S_UNLIMITED_F, h5dcreate_f, h5dopen_f, h5dclose_f, &
                   h5dwrite_f, h5dget_space_f, h5dset_extent_f, h5acreate_f, h5awrite_f, &
                   h5aclose_f, h5aexists_f, h5adelete_f, h5tcopy_f, h5tset_size_f, &
-                  h5tset_strpad_f, h5tclose_f, H5T_NATIVE_CHARACTER, H5T_STR_NULLPAD_F
+                  h5tset_strpad_f, h5tclose_f, H5T_NATIVE_CHARACTER, H5T_STR_NULLPAD_F, &
+                  h5fopen_f, H5F_ACC_RDWR_F, h5gn_members_f, h5gget_obj_info_idx_f, &
+                  H5G_DATASET_F, H5G_GROUP_F, h5ldelete_f, h5aopen_f, h5aread_f
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
-            io_write_attribute, io_close, io_file_exists
+            io_write_attribute, io_close, io_file_exists, io_reopen
 
   !> An open output file and what has been written to it.
   type, public :: io_t
@@ -128,15 +131,7 @@ contains
       call h5open_f(hdferr)
       call check(hdferr, 'h5open_f', io%path)
     end if
-    call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
-    call check(hdferr, 'h5pcreate_f(file access)', io%path)
-    call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, hdferr)
-    call check(hdferr, 'h5pset_fapl_mpio_f', io%path)
-    ! Metadata written and read collectively: one rank does the I/O instead of all of them.
-    call h5pset_coll_metadata_write_f(fapl, .true., hdferr)
-    call check(hdferr, 'h5pset_coll_metadata_write_f', io%path)
-    call h5pset_all_coll_metadata_ops_f(fapl, .true., hdferr)
-    call check(hdferr, 'h5pset_all_coll_metadata_ops_f', io%path)
+    fapl = parallel_access(io, comm)
     ! A failed create is reported as err below (one message, not an HDF5 stack per rank).
     call h5eset_auto_f(0, hdferr)
     call check(hdferr, 'h5eset_auto_f', io%path)
@@ -161,24 +156,190 @@ contains
     end if
     n_open_files = n_open_files + 1
 
-    call h5pcreate_f(H5P_DATASET_XFER_F, io%dxpl, hdferr)
-    call check(hdferr, 'h5pcreate_f(transfer)', io%path)
-    call h5pset_dxpl_mpio_f(io%dxpl, H5FD_MPIO_COLLECTIVE_F, hdferr)
-    call check(hdferr, 'h5pset_dxpl_mpio_f', io%path)
-    io%real_type = h5kind_to_type(wp, H5_REAL_KIND)
-    io%int_type = h5kind_to_type(kind(0), H5_INTEGER_KIND)
-    io%comm = comm
-    io%nx = nx
-    io%ny = ny
-    io%y0 = y0
-    io%nyl = nyl
-    io%dx = dx
-    call xdmf_init(io%xdmf, io%xdmf_path, io%name//'.h5', nx, ny, dx)
-    io%is_open = .true.
+    call set_open(io, comm, nx, ny, y0, nyl, dx)
 
     ! A sidecar left by an earlier run would name groups this file does not have.
     if (io%rank == 0) call xdmf_delete(io%xdmf)
   end subroutine io_open
+
+  !> Open the existing `<dir>/<name>.h5` of a run that resumes from a checkpoint at `step`, and
+  !! cut it back to that step: the datasets of the series groups `groups` keep their first
+  !! `samples` samples, their sub-groups (the episodes written at the end of a run) are removed,
+  !! field groups of later steps are removed, and the XDMF sidecar is rebuilt from the field
+  !! groups that remain. Arguments as io_open; err as io_open.
+  subroutine io_reopen(io, dir, name, comm, nx, ny, y0, nyl, dx, step, samples, groups, &
+                       drop_at_step, field_order, err)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: dir, name
+    type(MPI_Comm), intent(in) :: comm
+    integer, intent(in) :: nx, ny, y0, nyl
+    real(wp), intent(in) :: dx
+    integer, intent(in) :: step           !! the checkpoint's step
+    integer, intent(in) :: samples        !! series samples written up to that step
+    character(len=*), intent(in) :: groups(:) !! series groups, e.g. 'particles'
+    logical, intent(in) :: drop_at_step   !! also remove the field group of `step` (it was the
+                                          !! final output of a run, not a scheduled one)
+    character(len=*), intent(in) :: field_order(:) !! the order the fields were written in
+    character(len=:), allocatable, intent(out) :: err
+    integer(hid_t) :: fapl, grp
+    integer :: hdferr, k
+    logical :: bad, any_bad, exists
+    character(len=:), allocatable :: base
+
+    err = ''
+    call MPI_Comm_rank(comm, io%rank)
+    base = trim(dir)
+    io%name = trim(name)
+    io%path = base//'/'//io%name//'.h5'
+    io%xdmf_path = base//'/'//io%name//'.xdmf'
+    if (io%rank == 0) exists = io_file_exists(io%path)
+    call MPI_Bcast(exists, 1, MPI_LOGICAL, 0, comm)
+    if (.not. exists) then
+      err = 'the output file '''//io%path//''' of the run to resume is missing; a restart '// &
+            'continues the output file of the run that wrote the checkpoint (same output.dir)'
+      return
+    end if
+    if (n_open_files == 0) then
+      call h5open_f(hdferr)
+      call check(hdferr, 'h5open_f', io%path)
+    end if
+    fapl = parallel_access(io, comm)
+    call h5eset_auto_f(0, hdferr)
+    call h5fopen_f(io%path, H5F_ACC_RDWR_F, io%file_id, hdferr, access_prp=fapl)
+    bad = hdferr < 0
+    call h5eset_auto_f(1, hdferr)
+    call h5pclose_f(fapl, hdferr)
+    call MPI_Allreduce(bad, any_bad, 1, MPI_LOGICAL, MPI_LOR, comm)
+    if (any_bad) then
+      err = 'cannot open '''//io%path//''' to continue it'
+      return
+    end if
+    n_open_files = n_open_files + 1
+    call set_open(io, comm, nx, ny, y0, nyl, dx)
+
+    do k = 1, size(groups)
+      call h5lexists_f(io%file_id, trim(groups(k)), exists, hdferr)
+      if (.not. exists) cycle
+      call cut_group(trim(groups(k)))
+    end do
+    call h5lexists_f(io%file_id, 'fields', exists, hdferr)
+    if (exists) call cut_fields()
+    call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
+    call check(hdferr, 'h5fflush_f', io%path)
+    if (io%rank == 0) call xdmf_write(io%xdmf)
+  contains
+    !> The members of group `path`: names and kinds (H5G_DATASET_F, H5G_GROUP_F, ...).
+    subroutine members(path, names, kinds)
+      character(len=*), intent(in) :: path
+      character(len=64), allocatable, intent(out) :: names(:)
+      integer, allocatable, intent(out) :: kinds(:)
+      integer :: n, j
+      call h5gn_members_f(io%file_id, path, n, hdferr)
+      call check(hdferr, 'h5gn_members_f('//path//')', io%path)
+      allocate (names(n), kinds(n))
+      do j = 1, n
+        call h5gget_obj_info_idx_f(io%file_id, path, j - 1, names(j), kinds(j), hdferr)
+        call check(hdferr, 'h5gget_obj_info_idx_f('//path//')', io%path)
+      end do
+    end subroutine members
+
+    subroutine cut_group(path)
+      character(len=*), intent(in) :: path
+      character(len=64), allocatable :: names(:)
+      integer, allocatable :: kinds(:)
+      integer(hid_t) :: dset, space
+      integer(hsize_t) :: dims(2), maxdims(2)
+      integer :: j, nd
+      call members(path, names, kinds)
+      do j = 1, size(names)
+        if (kinds(j) == H5G_GROUP_F) then
+          call h5ldelete_f(io%file_id, path//'/'//trim(names(j)), hdferr)
+          call check(hdferr, 'h5ldelete_f('//path//'/'//trim(names(j))//')', io%path)
+        else if (kinds(j) == H5G_DATASET_F) then
+          call h5dopen_f(io%file_id, path//'/'//trim(names(j)), dset, hdferr)
+          call check(hdferr, 'h5dopen_f('//path//'/'//trim(names(j))//')', io%path)
+          call h5dget_space_f(dset, space, hdferr)
+          call h5sget_simple_extent_ndims_f(space, nd, hdferr)
+          call h5sget_simple_extent_dims_f(space, dims(1:nd), maxdims(1:nd), hdferr)
+          call h5sclose_f(space, hdferr)
+          ! samples run along the last HDF5 dimension (append_sample)
+          if (dims(nd) < samples) call fatal_local('io_reopen: '//path//'/'// &
+                                                   trim(names(j))//' in '''//io%path// &
+                                                   ''' holds fewer samples than the checkpoint')
+          dims(nd) = samples
+          call h5dset_extent_f(dset, dims(1:nd), hdferr)
+          call check(hdferr, 'h5dset_extent_f('//path//'/'//trim(names(j))//')', io%path)
+          call h5dclose_f(dset, hdferr)
+        end if
+      end do
+    end subroutine cut_group
+
+    !> Remove the field groups after `step`; list the others in the sidecar, in step order.
+    subroutine cut_fields()
+      character(len=64), allocatable :: names(:), fnames(:)
+      integer, allocatable :: kinds(:), fkinds(:), steps(:)
+      real(wp) :: t, offset
+      integer :: j, s, ios
+      call members('fields', names, kinds)
+      allocate (steps(size(names)))
+      do j = 1, size(names)
+        read (names(j), *, iostat=ios) steps(j)
+        if (ios /= 0) steps(j) = -1
+      end do
+      do j = 1, size(names)
+        if (steps(j) > step .or. (drop_at_step .and. steps(j) == step)) then
+          steps(j) = -1
+          call h5ldelete_f(io%file_id, 'fields/'//trim(names(j)), hdferr)
+          call check(hdferr, 'h5ldelete_f(fields/'//trim(names(j))//')', io%path)
+        end if
+      end do
+      ! the names are zero-padded step numbers, so the listing is in step order
+      do j = 1, size(names)
+        s = steps(j)
+        if (s < 0) cycle
+        call read_attr('fields/'//trim(names(j)), 'time', t)
+        call read_attr('fields/'//trim(names(j)), 'window_offset', offset)
+        call members('fields/'//trim(names(j)), fnames, fkinds)
+        call xdmf_add_frame(io%xdmf, s, t, offset, field_group(s), ordered(fnames))
+      end do
+    end subroutine cut_fields
+
+    !> `found` in the order of field_order, names not in it last
+    function ordered(found) result(out)
+      character(len=64), intent(in) :: found(:)
+      character(len=64) :: out(size(found))
+      integer :: a, b, m
+      m = 0
+      do a = 1, size(field_order)
+        do b = 1, size(found)
+          if (trim(found(b)) == trim(field_order(a))) then
+            m = m + 1
+            out(m) = found(b)
+          end if
+        end do
+      end do
+      do b = 1, size(found)
+        if (all(trim(found(b)) /= field_order)) then
+          m = m + 1
+          out(m) = found(b)
+        end if
+      end do
+    end function ordered
+
+    subroutine read_attr(path, aname, value)
+      character(len=*), intent(in) :: path, aname
+      real(wp), intent(out) :: value
+      integer(hid_t) :: obj, attr
+      call h5oopen_f(io%file_id, path, obj, hdferr)
+      call check(hdferr, 'h5oopen_f('//path//')', io%path)
+      call h5aopen_f(obj, aname, attr, hdferr)
+      call check(hdferr, 'h5aopen_f('//path//' '//aname//')', io%path)
+      call h5aread_f(attr, io%real_type, value, one, hdferr)
+      call check(hdferr, 'h5aread_f('//path//' '//aname//')', io%path)
+      call h5aclose_f(attr, hdferr)
+      call h5oclose_f(obj, hdferr)
+    end subroutine read_attr
+  end subroutine io_reopen
 
   !> Write group /run: the configuration, provenance and one real attribute per lattice
   !! parameter. Call once, with the same arguments on every rank.
@@ -387,6 +548,46 @@ contains
   end function io_file_exists
 
   ! ---------------------------------------------------------------------------------------------
+
+  !> File access for parallel I/O on `comm`, metadata written and read collectively (one rank
+  !! does the I/O instead of all of them). The caller closes it.
+  function parallel_access(io, comm) result(fapl)
+    type(io_t), intent(in) :: io
+    type(MPI_Comm), intent(in) :: comm
+    integer(hid_t) :: fapl
+    integer :: hdferr
+    call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
+    call check(hdferr, 'h5pcreate_f(file access)', io%path)
+    call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, hdferr)
+    call check(hdferr, 'h5pset_fapl_mpio_f', io%path)
+    call h5pset_coll_metadata_write_f(fapl, .true., hdferr)
+    call check(hdferr, 'h5pset_coll_metadata_write_f', io%path)
+    call h5pset_all_coll_metadata_ops_f(fapl, .true., hdferr)
+    call check(hdferr, 'h5pset_all_coll_metadata_ops_f', io%path)
+  end function parallel_access
+
+  !> The state of an io_t whose file was just opened: collective transfers, types, the slab.
+  subroutine set_open(io, comm, nx, ny, y0, nyl, dx)
+    type(io_t), intent(inout) :: io
+    type(MPI_Comm), intent(in) :: comm
+    integer, intent(in) :: nx, ny, y0, nyl
+    real(wp), intent(in) :: dx
+    integer :: hdferr
+    call h5pcreate_f(H5P_DATASET_XFER_F, io%dxpl, hdferr)
+    call check(hdferr, 'h5pcreate_f(transfer)', io%path)
+    call h5pset_dxpl_mpio_f(io%dxpl, H5FD_MPIO_COLLECTIVE_F, hdferr)
+    call check(hdferr, 'h5pset_dxpl_mpio_f', io%path)
+    io%real_type = h5kind_to_type(wp, H5_REAL_KIND)
+    io%int_type = h5kind_to_type(kind(0), H5_INTEGER_KIND)
+    io%comm = comm
+    io%nx = nx
+    io%ny = ny
+    io%y0 = y0
+    io%nyl = nyl
+    io%dx = dx
+    call xdmf_init(io%xdmf, io%xdmf_path, io%name//'.h5', nx, ny, dx)
+    io%is_open = .true.
+  end subroutine set_open
 
   !> Group of the fields of `step`: six digits, more when the step needs them.
   function field_group(step) result(gname)

@@ -38,16 +38,26 @@ contains
     end if
   end subroutine log_line
 
-  !> Open the log file on rank 0 and write the lines logged so far. err is '' on success.
-  subroutine log_open(path, err)
+  !> Open the log file on rank 0 and write the lines logged so far; `append` (a resumed run)
+  !! continues an existing log. err is '' on success.
+  subroutine log_open(path, err, append)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: err
+    logical, intent(in), optional :: append
     integer :: ios
     character(len=256) :: iomsg
     err = ''
+    ios = 1
     if (.not. is_root()) return
-    open (newunit=log_unit, file=path, status='replace', action='write', iostat=ios, &
-          iomsg=iomsg)
+    if (present(append)) then
+      if (append) then
+        open (newunit=log_unit, file=path, status='unknown', position='append', &
+              action='write', iostat=ios, iomsg=iomsg)
+      end if
+    end if
+    if (.not. (present(append) .and. ios == 0)) &
+      open (newunit=log_unit, file=path, status='replace', action='write', iostat=ios, &
+            iomsg=iomsg)
     if (ios /= 0) then
       err = 'cannot write the log file '''//path//''': '//trim(iomsg)
       return

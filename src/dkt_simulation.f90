@@ -2,7 +2,8 @@
 !> The time loop (simulation_run) reads like SPEC §1–2: exchange, boundary ghosts, fused
 !> stream–collide, open ends, guards, output.
 module dkt_simulation
-  use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size
+  use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size, &
+                     MPI_Allreduce, MPI_IN_PLACE, MPI_INTEGER, MPI_BOR
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, i8, pi, cs2
   use dkt_errors, only: fatal_all, fatal_local, warn
@@ -23,15 +24,19 @@ module dkt_simulation
   use dkt_diagnostics, only: guard_check, pair_diag_t, pair_diag_init, pair_diag_update, &
                              pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_t, window_init, window_offset, window_follow, window_escaped
+  use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
+                            NSTATE
+  use dkt_signals, only: signals_install, signal_caught, SIGTERM
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute
+                    io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open, log_close
-  use dkt_filesystem, only: make_directories
+  use dkt_filesystem, only: make_directories, rename_file, remove_file
+  use dkt_registry, only: itoa
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   implicit none
   private
   public :: simulation_t, simulation_setup, simulation_summary, simulation_open_output, &
-            simulation_run, simulation_finish
+            simulation_run, simulation_finish, simulation_restore
 
   !> output fields; the particle index field only in a scene with particles
   character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
@@ -39,6 +44,10 @@ module dkt_simulation
   !> the /particles series besides t, one column per particle
   character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
                                                     'omega ', 'fx    ', 'fy    ', 'torque']
+
+  type :: path_t
+    character(len=:), allocatable :: s
+  end type path_t
 
   type :: simulation_t
     type(config_t) :: cfg
@@ -60,7 +69,12 @@ module dkt_simulation
     integer :: csv_unit = 0         !! the diagnostics CSV file (rank 0, when the pair is on)
     logical :: csv_open = .false.
     integer :: step = 0
+    integer :: samples = 0          !! samples of the /particles series written
     character(len=:), allocatable :: stopped_early !! why the run ended before its last step
+    logical :: restarted = .false.  !! the run resumed from a checkpoint
+    logical :: interrupted = .false. !! stopped on a signal or the wall limit, to be resumed
+    character(len=:), allocatable :: restart_from !! the checkpoint it resumed from
+    type(path_t), allocatable :: checkpoints(:)  !! written by this run (and the one resumed)
   end type simulation_t
 
 contains
@@ -215,6 +229,58 @@ contains
     end select
   end subroutine initialise
 
+  !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
+  !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
+  !! another lattice or time step, or with another number of particles, stops every rank.
+  subroutine simulation_restore(sim, path)
+    type(simulation_t), intent(inout) :: sim
+    character(len=*), intent(in) :: path
+    type(checkpoint_t) :: chk
+    character(len=:), allocatable :: err
+    character(len=512) :: msg
+    integer :: k
+    call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
+                         sim%dom%y0, chk, err)
+    if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
+    if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
+        abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
+        abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
+        size(chk%particles, 2) /= merge(sim%parts%n, 0, sim%particles_on)) then
+      write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
+        ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
+        ' cm, dt = ', chk%dt, ' s with ', size(chk%particles, 2), ' particles; the scene '// &
+        'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
+        ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
+        '--set options of the run that wrote it'
+      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
+    end if
+    if (chk%step > sim%lp%steps) then
+      write (msg, '(a,i0,a,i0,a)') ': the checkpoint is at step ', chk%step, &
+        ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
+      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
+    end if
+    sim%step = chk%step
+    sim%samples = chk%samples
+    sim%win%shift = chk%shift
+    do k = 1, size(chk%particles, 2)
+      associate (p => sim%parts%p(k), v => chk%particles(:, k))
+        p%x = v(1); p%y = v(2); p%u = v(3); p%v = v(4); p%omega = v(5)
+        p%fx = v(6); p%fy = v(7); p%torque = v(8); p%cx = v(9); p%cy = v(10)
+      end associate
+    end do
+    if (sim%particles_on) call particles_find_links(sim%parts, sim%dom)
+    if (sim%pair_on) then
+      sim%pair%n = size(chk%t_start)
+      sim%pair%in_episode = chk%in_episode
+      sim%pair%t_start = chk%t_start
+      sim%pair%t_end = chk%t_end
+      sim%pair%gap_min = chk%gap_min
+    end if
+    sim%restarted = .true.
+    sim%restart_from = path
+    sim%checkpoints = [path_t(path)]
+  end subroutine simulation_restore
+
   !> The derived lattice parameters, sizes and models of the run, printed by rank 0 before it
   !! starts (and by --check instead of running).
   subroutine simulation_summary(sim)
@@ -325,12 +391,33 @@ contains
     ! only rank 0 knows the reason; it is the rank that prints
     if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
                                  err//'; choose a writable output.dir')
+    if (sim%restarted) then
+      ! the output of the run that wrote the checkpoint continues, cut back to its step
+      call io_reopen(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
+                     sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, sim%samples, &
+                     [character(len=11) :: 'particles', 'diagnostics'], &
+                     sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
+                     field_names, err)
+      if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
+                                       sim%restart_from//': '//err)
+      sim%output_open = .true.
+      call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
+      if (len(err) > 0) call fatal_local(err)
+      if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
+                                                               '_diagnostics.csv')
+      if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
+      return
+    end if
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
     sim%output_open = .true.
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)
+    if (sim%dom%rank == 0) then
+      call remove_file(dir//'/'//sim%cfg%name//'.finished')
+      call remove_file(dir//'/'//sim%cfg%name//'.checkpoint')
+    end if
 
     s = collision_describe(sim%coll)
     pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
@@ -353,27 +440,56 @@ contains
       write (sim%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
         'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
     end if
+  contains
+    !> Keep the header and the first `samples` rows of the CSV file, then append to it.
+    subroutine reopen_csv(path)
+      character(len=*), intent(in) :: path
+      character(len=2048), allocatable :: rows(:)
+      integer :: u, k
+      allocate (rows(sim%samples + 1))
+      open (newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+      if (ios /= 0) call fatal_local('--restart: cannot read '//path//': '//trim(msg))
+      do k = 1, sim%samples + 1
+        read (u, '(a)', iostat=ios) rows(k)
+        if (ios /= 0) call fatal_local('--restart: '//path//' has fewer rows than the '// &
+                                       'checkpoint''s samples')
+      end do
+      close (u)
+      open (newunit=sim%csv_unit, file=path, status='replace', action='write', iostat=ios, &
+            iomsg=msg)
+      if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
+      do k = 1, sim%samples + 1
+        write (sim%csv_unit, '(a)') trim(rows(k))
+      end do
+      sim%csv_open = .true.
+    end subroutine reopen_csv
   end subroutine simulation_open_output
 
   !> The time loop.
   subroutine simulation_run(sim)
     type(simulation_t), intent(inout) :: sim
     real(wp), pointer, contiguous :: tmp(:, :, :)
-    integer :: n, nyl, nx, nxp, last_progress
-    real(wp) :: t, mach, t_start, t_last, y0
+    integer :: n, nyl, nx, nxp, last_progress, first, flags
+    real(wp) :: t, mach, t_start, t_last, y0, t_checkpoint
     logical :: last
     character(len=256) :: line
+    character(len=:), allocatable :: reason
 
     nx = sim%dom%nx
     nyl = sim%dom%nyl
     nxp = sim%dom%nxp
     associate (lp => sim%lp, cfg => sim%cfg)
-      if (lp%field_every > 0) call write_fields(sim, 0)
-      if (sim%particles_on) call write_particles(sim, 0)
+      if (.not. sim%restarted) then
+        if (lp%field_every > 0) call write_fields(sim, 0)
+        if (sim%particles_on) call write_particles(sim, 0)
+      end if
+      call signals_install()
+      first = sim%step + 1
       t_start = MPI_Wtime()
       t_last = t_start
-      last_progress = 0
-      do n = 1, lp%steps
+      t_checkpoint = t_start
+      last_progress = sim%step
+      do n = first, lp%steps
         if (sim%particles_on) then
           call particle_step(sim, n)
         else
@@ -418,19 +534,66 @@ contains
             call progress(n, last_progress, t_last, t_start, mach)
           end if
         end if
-        if (last) exit
+        ! checkpoints: every checkpoint_every steps, every checkpoint_wall seconds (rank 0's
+        ! clock), and before stopping on a signal or at the wall limit; all ranks decide alike
+        flags = 0
+        if (signal_caught() /= 0) flags = ibset(flags, 0)
+        if (sim%dom%rank == 0) then
+          if (cfg%run%checkpoint_wall > 0.0_wp .and. &
+              MPI_Wtime() - t_checkpoint >= cfg%run%checkpoint_wall) flags = ibset(flags, 1)
+          if (cfg%run%wall_limit > 0.0_wp .and. MPI_Wtime() - t_start >= cfg%run%wall_limit) &
+            flags = ibset(flags, 2)
+        end if
+        call MPI_Allreduce(MPI_IN_PLACE, flags, 1, MPI_INTEGER, MPI_BOR, sim%dom%comm)
+        if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
+          call write_checkpoint(sim)
+          sim%interrupted = .true.
+          if (btest(flags, 0)) then
+            reason = 'on signal '//trim(merge('SIGTERM', 'SIGUSR1', &
+                                              signal_caught() == SIGTERM .or. &
+                                              signal_caught() == 0))
+          else
+            reason = 'at run.wall_limit'
+          end if
+          exit
+        end if
+        if (last) exit ! (a checkpoint at the last step follows the final output)
+        if (btest(flags, 1) .or. cfg%run%checkpoint_every > 0) then
+          if (btest(flags, 1) .or. mod(n, max(1, cfg%run%checkpoint_every)) == 0) then
+            call write_checkpoint(sim)
+            t_checkpoint = MPI_Wtime()
+          end if
+        end if
       end do
       n = sim%step
       t = MPI_Wtime() - t_start
       write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
-        real(lp%nx, wp)*real(lp%ny, wp)*real(n, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
-        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', n, ' steps in ', t, ' s on ', &
-        sim%dom%nranks, ' ranks)'
+        real(lp%nx, wp)*real(lp%ny, wp)*real(n - first + 1, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
+        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', n - first + 1, ' steps in ', t, &
+        ' s on ', sim%dom%nranks, ' ranks)'
+      if (sim%interrupted) then
+        call log_line(trim(line))
+        call log_line('stopped '//reason//' after step '//itoa(n)//' of '//itoa(lp%steps)// &
+                      '; checkpoint '//sim%checkpoints(size(sim%checkpoints))%s// &
+                      ' written. Resume with:')
+        call log_line('  '//resume_command(sim%checkpoints(size(sim%checkpoints))%s, &
+                                           sim%dom%nranks))
+        return
+      end if
       call write_fields(sim, n)
       if (sim%particles_on) call write_particles(sim, n)
       call log_line(trim(line))
       if (len(sim%stopped_early) > 0) call warn(sim%stopped_early)
       if (sim%pair_on) call pair_report(sim)
+      ! a checkpoint at the last step lets the run be extended (a larger run.t_end); the final
+      ! sample counts only when it is on the series schedule, as in a longer run
+      if (cfg%run%checkpoint_every > 0) then
+        if (mod(n, cfg%run%checkpoint_every) == 0) &
+          call write_checkpoint(sim, merge(1, 0, sim%particles_on .and. &
+                                           mod(n, lp%series_every) /= 0))
+      end if
+      if (sim%dom%rank == 0) call write_marker(config_output_dir(cfg)//'/'//cfg%name// &
+                                               '.finished', itoa(n))
     end associate
   contains
     subroutine progress(n, last, t_last, t_start, mach)
@@ -455,6 +618,105 @@ contains
       t_last = now
     end subroutine progress
   end subroutine simulation_run
+
+  !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
+  !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint
+  !! written before stays as it was.
+  subroutine write_checkpoint(sim, unscheduled)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in), optional :: unscheduled !! samples written off the series schedule
+    type(checkpoint_t) :: chk
+    character(len=:), allocatable :: dir, path, err, before
+    integer :: k
+    dir = config_output_dir(sim%cfg)
+    path = checkpoint_name(dir, sim%cfg%name, sim%step)
+    chk%step = sim%step
+    chk%shift = sim%win%shift
+    chk%samples = sim%samples
+    if (present(unscheduled)) chk%samples = sim%samples - unscheduled
+    chk%nx = sim%lp%nx
+    chk%ny = sim%lp%ny
+    chk%dx = sim%lp%dx
+    chk%dt = sim%lp%dt
+    allocate (chk%particles(NSTATE, merge(sim%parts%n, 0, sim%particles_on)))
+    do k = 1, size(chk%particles, 2)
+      associate (p => sim%parts%p(k))
+        chk%particles(:, k) = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
+      end associate
+    end do
+    chk%in_episode = sim%pair_on .and. sim%pair%in_episode
+    if (sim%pair_on) then
+      chk%t_start = sim%pair%t_start(1:sim%pair%n)
+      chk%t_end = sim%pair%t_end(1:sim%pair%n)
+      chk%gap_min = sim%pair%gap_min(1:sim%pair%n)
+    else
+      allocate (chk%t_start(0), chk%t_end(0), chk%gap_min(0))
+    end if
+    call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
+                          sim%cfg%given, err)
+    if (len(err) > 0) then
+      before = 'none'
+      if (allocated(sim%checkpoints)) then
+        if (size(sim%checkpoints) > 0) before = sim%checkpoints(size(sim%checkpoints))%s
+      end if
+      call fatal_all(err//'. The last checkpoint written is '//before)
+    end if
+    if (.not. allocated(sim%checkpoints)) allocate (sim%checkpoints(0))
+    sim%checkpoints = [sim%checkpoints, path_t(path)]
+    if (sim%dom%rank == 0) then
+      call write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
+      do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
+        call remove_file(sim%checkpoints(1)%s)
+        sim%checkpoints = sim%checkpoints(2:)
+      end do
+    else
+      do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
+        sim%checkpoints = sim%checkpoints(2:)
+      end do
+    end if
+    call log_line('checkpoint '//path)
+  end subroutine write_checkpoint
+
+  !> A one-line text file (rank-local), for batch scripts: replaced atomically.
+  subroutine write_marker(path, text)
+    character(len=*), intent(in) :: path, text
+    integer :: u, ios
+    open (newunit=u, file=path//'.tmp', status='replace', action='write', iostat=ios)
+    if (ios /= 0) return
+    write (u, '(a)') text
+    close (u)
+    if (.not. rename_file(path//'.tmp', path)) return
+  end subroutine write_marker
+
+  !> The command that resumes this run from `checkpoint`: this process's arguments with
+  !! --restart replaced, under mpirun with the same rank count.
+  function resume_command(checkpoint, nranks) result(cmd)
+    character(len=*), intent(in) :: checkpoint
+    integer, intent(in) :: nranks
+    character(len=:), allocatable :: cmd, arg
+    integer :: j, length
+    logical :: skip
+    cmd = 'mpirun -n '//itoa(nranks)
+    skip = .false.
+    do j = 0, command_argument_count()
+      call get_command_argument(j, length=length)
+      allocate (character(len=length) :: arg)
+      call get_command_argument(j, arg)
+      if (skip) then
+        skip = .false.
+      else if (arg == '--restart') then
+        skip = .true.
+      else if (index(arg, '--restart=') /= 1) then
+        if (index(arg, ' ') > 0 .or. len(arg) == 0) then
+          cmd = cmd//' '''//arg//''''
+        else
+          cmd = cmd//' '//arg
+        end if
+      end if
+      deallocate (arg)
+    end do
+    cmd = cmd//' --restart '//checkpoint
+  end function resume_command
 
   !> One step with particles: the halo is completed before the sweep because a boundary link
   !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
@@ -534,6 +796,7 @@ contains
       end associate
     end do
     if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
+    sim%samples = sim%samples + 1
     call io_write_series(sim%io, 'particles', ['t'], [n*dt])
     call io_write_table(sim%io, 'particles', series_names, v)
     if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])

@@ -3,8 +3,8 @@
 !> HDF5 itself is written by dkt_io, which keeps an xdmf_t per open file. Every rank may record
 !> frames; one rank (rank 0) writes the file.
 module dkt_xdmf
-  use iso_c_binding, only: c_char, c_int, c_null_char
   use dkt_kinds, only: wp
+  use dkt_filesystem, only: rename_file
   use dkt_errors, only: fatal_local
   implicit none
   private
@@ -16,7 +16,9 @@ module dkt_xdmf
     real(wp) :: t = 0.0_wp      !! s
     real(wp) :: offset = 0.0_wp !! cm, window offset along y
     character(len=:), allocatable :: group     !! HDF5 group of the snapshot, e.g. /fields/000010
-    character(len=:), allocatable :: fields(:) !! dataset names in that group
+    !> dataset names in that group; fixed length, because gfortran 12 loses the length of a
+    !! deferred-length character array when the frames are copied into a grown array
+    character(len=64), allocatable :: fields(:)
   end type frame_t
 
   !> The sidecar of one HDF5 file and the snapshots it lists.
@@ -29,14 +31,6 @@ module dkt_xdmf
     integer :: nframes = 0
     type(frame_t), allocatable :: frames(:)
   end type xdmf_t
-
-  interface
-    function c_rename(old, new) bind(c, name='rename') result(status)
-      import :: c_char, c_int
-      character(kind=c_char), intent(in) :: old(*), new(*)
-      integer(c_int) :: status
-    end function c_rename
-  end interface
 
 contains
 
@@ -81,7 +75,9 @@ contains
       f%t = t
       f%offset = offset
       f%group = group
-      allocate (character(len=max(1, maxval(len_trim(names)))) :: f%fields(size(names)))
+      if (maxval(len_trim(names)) > len(f%fields)) &
+        call fatal_local('xdmf_add_frame: a field name is longer than 64 characters')
+      allocate (f%fields(size(names)))
       do k = 1, size(names)
         f%fields(k) = trim(names(k))
       end do
@@ -135,7 +131,7 @@ contains
     if (ios == 0) write (u, '(a)', iostat=ios, iomsg=msg) xml
     if (ios == 0) close (u, iostat=ios, iomsg=msg)
     if (ios /= 0) call fatal_local('cannot write '''//tmp//''': '//trim(msg))
-    if (c_rename(tmp//c_null_char, x%path//c_null_char) /= 0) &
+    if (.not. rename_file(tmp, x%path)) &
       call fatal_local('cannot rename '''//tmp//''' to '''//x%path//'''')
   end subroutine xdmf_write
 

@@ -8,7 +8,8 @@ program dktlbm
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, derive_lattice, config_to_namelist, print_help
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
-                            simulation_open_output, simulation_run, simulation_finish
+                            simulation_open_output, simulation_run, simulation_finish, &
+                            simulation_restore
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -38,6 +39,7 @@ program dktlbm
   call warn_lines(warnings)
 
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD)
+  if (len(cli%restart) > 0) call simulation_restore(sim, cli%restart)
   call simulation_summary(sim)
   if (.not. cli%check) then
     call simulation_open_output(sim)

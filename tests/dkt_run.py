@@ -84,9 +84,10 @@ def run_attr(h5file: Path, name: str) -> float:
         return float(np.asarray(h5["run"].attrs[name]).ravel()[0])
 
 
-def _session_pids(sid: int) -> list[int]:
-    """Processes of session `sid` (Linux /proc): mpiexec puts each rank in its own process
-    group, but they stay in the session run_args starts."""
+def session_pids(sid: int, comm: str | None = None) -> list[int]:
+    """Processes of session `sid` (Linux /proc), only those named `comm` if given (e.g.
+    "dktlbm": the ranks, not mpiexec): mpiexec puts each rank in its own process group, but
+    they stay in the session run_args starts."""
     pids = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -95,8 +96,9 @@ def _session_pids(sid: int) -> list[int]:
             stat = (entry / "stat").read_text()
         except OSError:
             continue
+        name = stat[stat.index("(") + 1 : stat.rindex(")")]
         fields = stat[stat.rindex(")") + 2 :].split()  # after "pid (comm) "
-        if int(fields[3]) == sid:
+        if int(fields[3]) == sid and (comm is None or name == comm):
             pids.append(int(entry.name))
     return pids
 
@@ -127,7 +129,7 @@ def run_args(
     except subprocess.TimeoutExpired:
         proc.terminate()  # mpiexec passes SIGTERM on to the ranks
         time.sleep(2.0)
-        for pid in _session_pids(proc.pid):
+        for pid in session_pids(proc.pid):
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:

@@ -1,0 +1,223 @@
+"""Checkpoint and restart: a resumed run is indistinguishable from one that never stopped.
+
+The scene is case0 (two disks in the moving window, 10 spacings per diameter) so that the
+checkpoint must carry the populations, both particles, the window offset and the kissing
+episodes. "Indistinguishable" is checked on the whole output: every dataset of the HDF5 file
+(fields, /particles, /diagnostics, episodes) compared with np.array_equal, the /diagnostics
+attributes, the CSV file and the XDMF sidecar byte for byte.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from dkt_run import EXE, INPUT, mpi_command, mpi_env, run, run_args, session_pids
+
+STEPS = 1200
+SETS = [
+    "lbm.cells_per_diameter=10",
+    f"run.steps={STEPS}",
+    "output.series_interval=0.01",
+    "output.field_interval=0.1",
+]
+
+
+def datasets(h5file: Path) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(h5file, "r") as h5:
+
+        def take(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                out[name] = obj[()]
+
+        h5.visititems(take)
+    return out
+
+
+def diagnostics_attrs(h5file: Path) -> dict[str, object]:
+    with h5py.File(h5file, "r") as h5:
+        return dict(h5["diagnostics"].attrs)
+
+
+LONG = 6000  # steps of the signal test: a few seconds, so that the signal lands mid-run
+LONG_SETS = [*SETS, f"run.steps={LONG}", "output.field_interval=0.5"]
+
+
+def assert_same_output(a: Path, b: Path) -> None:
+    """Every dataset, the /diagnostics attributes, the CSV and the XDMF of two output dirs."""
+    da, db = datasets(a / "case0.h5"), datasets(b / "case0.h5")
+    assert sorted(da) == sorted(db), set(da) ^ set(db)
+    differ = [k for k in da if not np.array_equal(da[k], db[k], equal_nan=True)]
+    assert not differ, f"datasets differ: {differ}"
+    assert diagnostics_attrs(a / "case0.h5") == diagnostics_attrs(b / "case0.h5")
+    for name in ("case0_diagnostics.csv", "case0.xdmf"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    assert b"\0" not in (b / "case0.xdmf").read_bytes()
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference: STEPS steps on 2 ranks without a stop (more than 8 field snapshots, so
+    the XDMF sidecar grows its frame list)."""
+    out = tmp_path_factory.mktemp("full") / "run"
+    run("case0.nml", 2, SETS, out, timeout=600)
+    with h5py.File(out / "case0.h5", "r") as h5:
+        assert len(h5["fields"]) > 8
+        # the window moved and the pair kissed: the checkpoint must carry both
+        offset = h5["particles/window_offset"][()]
+        assert offset[0] - offset[-1] > 0.5
+        assert h5["diagnostics"].attrs["episodes"] >= 1
+    return out
+
+
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_half_a_run_then_a_restart_equals_the_whole_run(
+    uninterrupted: Path, tmp_path: Path, ranks: int
+) -> None:
+    """STEPS/2 steps on 2 ranks with a checkpoint at the end, then a restart from it on
+    `ranks` ranks to STEPS: the output equals the uninterrupted run's, bit for bit (the first
+    half's final snapshot, which an uninterrupted run does not write, is removed)."""
+    out = tmp_path / "run"
+    half = STEPS // 2
+    run("case0.nml", 2, [*SETS, f"run.steps={half}", f"run.checkpoint_every={half}"], out)
+    checkpoint = out / f"case0_chk_{half:09d}.h5"
+    assert checkpoint.exists()
+    assert (out / "case0.checkpoint").read_text().strip() == str(checkpoint)
+    proc = run("case0.nml", ranks, SETS, out, extra=["--restart", str(checkpoint)])
+    assert "DKT pattern" in proc.stdout
+    assert (out / "case0.finished").exists()
+    assert_same_output(uninterrupted, out)
+
+
+def test_sigterm_checkpoints_exits_zero_and_the_resumed_run_matches(tmp_path: Path) -> None:
+    """SIGTERM to the ranks (what a batch system sends before the time limit) mid-run: the run
+    writes a checkpoint at the next step boundary, says how to resume, exits 0 and leaves the
+    newest checkpoint named in case0.checkpoint; resumed on 3 ranks it ends equal to the run
+    that never stopped."""
+    reference = tmp_path / "reference"
+    run("case0.nml", 2, LONG_SETS, reference, timeout=600)
+    out = tmp_path / "run"
+    cmd = [*mpi_command(2), str(EXE), str(INPUT / "case0.nml")]
+    for s in [*LONG_SETS, "run.progress_every=100", f"output.dir={out}"]:
+        cmd += ["--set", s]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=mpi_env(),
+        start_new_session=True,
+    )
+    # wait until the run is stepping (its first progress line is in the log)
+    deadline = time.time() + 120
+    log = out / "case0.log"
+    while time.time() < deadline:
+        if log.exists() and f"step 100/{LONG}" in log.read_text():
+            break
+        time.sleep(0.05)
+    for pid in session_pids(proc.pid, "dktlbm"):
+        os.kill(pid, signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 0, stderr
+    assert "stopped on signal SIGTERM" in stdout
+    assert "--restart" in stdout
+    checkpoint = Path((out / "case0.checkpoint").read_text().strip())
+    assert checkpoint.exists()
+    assert not (out / "case0.finished").exists()
+    step = int(checkpoint.stem.split("_")[-1])
+    assert 100 <= step < LONG, f"stopped at step {step}: the signal came too late"
+    run("case0.nml", 3, LONG_SETS, out, extra=["--restart", str(checkpoint)])
+    assert_same_output(reference, out)
+
+
+def test_wall_limit_checkpoints_and_stops_by_itself(tmp_path: Path) -> None:
+    """run.wall_limit: the run checkpoints and stops with exit 0 when its wall time reaches the
+    limit, before its last step."""
+    out = tmp_path / "run"
+    proc = run("case0.nml", 2, [*SETS, f"run.steps={100 * STEPS}", "run.wall_limit=2"], out)
+    assert "stopped at run.wall_limit" in proc.stdout
+    checkpoint = Path((out / "case0.checkpoint").read_text().strip())
+    assert checkpoint.exists() and not (out / "case0.finished").exists()
+
+
+def test_older_checkpoints_are_removed_beyond_checkpoint_keep(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    run("case0.nml", 1, [*SETS, "run.checkpoint_every=200", "run.checkpoint_keep=2"], out)
+    kept = sorted(p.name for p in out.glob("case0_chk_*.h5"))
+    assert kept == [f"case0_chk_{s:09d}.h5" for s in (STEPS - 200, STEPS)]
+
+
+def test_a_failed_checkpoint_write_stops_cleanly_and_keeps_the_previous_one(
+    tmp_path: Path,
+) -> None:
+    """A checkpoint that cannot be written (here its temporary file name is taken by a
+    directory, as a disk error would refuse it): the run stops with a message naming the file
+    and the last good checkpoint, exits non-zero without hanging, and the previous checkpoint
+    is complete and resumes."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "case0_chk_000000400.h5.tmp").mkdir()
+    proc = run("case0.nml", 2, [*SETS, "run.checkpoint_every=200"], out, timeout=300, check=False)
+    assert proc.returncode != 0
+    assert "case0_chk_000000400.h5.tmp" in proc.stderr
+    assert "case0_chk_000000200.h5" in proc.stderr
+    resumed = run(
+        "case0.nml",
+        1,
+        [*SETS, "run.steps=300"],
+        out,
+        extra=["--restart", str(out / "case0_chk_000000200.h5")],
+        check=False,
+    )
+    assert resumed.returncode == 0, resumed.stderr
+
+
+def test_a_bad_restart_file_is_refused_with_a_clear_message(tmp_path: Path) -> None:
+    """A missing file, a file that is not a checkpoint, and a checkpoint of another lattice
+    each stop every rank with one message naming the file, a non-zero status, and leave the
+    output as it was."""
+    out = tmp_path / "run"
+    run("case0.nml", 2, [*SETS, "run.steps=100", "run.checkpoint_every=100"], out)
+    before = (out / "case0.h5").read_bytes()
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as h5:
+        h5["x"] = np.zeros(3)
+    cases = {
+        str(tmp_path / "missing.h5"): "not found",
+        str(foreign): "is not a dktlbm checkpoint",
+    }
+    for path, expected in cases.items():
+        args = [
+            str(INPUT / "case0.nml"),
+            *sum((["--set", s] for s in SETS), []),
+            "--set",
+            f"output.dir={out}",
+            "--restart",
+            path,
+        ]
+        proc = run_args(args, ranks=2, timeout=60)
+        assert proc.returncode != 0
+        assert expected in proc.stderr and path in proc.stderr, proc.stderr
+    checkpoint = str(out / "case0_chk_000000100.h5")
+    args = [
+        str(INPUT / "case0.nml"),
+        *sum((["--set", s] for s in SETS), []),
+        "--set",
+        "lbm.cells_per_diameter=12",
+        "--set",
+        f"output.dir={out}",
+        "--restart",
+        checkpoint,
+    ]
+    proc = run_args(args, ranks=2, timeout=60)
+    assert proc.returncode != 0
+    assert "the checkpoint holds a lattice of" in proc.stderr, proc.stderr
+    assert (out / "case0.h5").read_bytes() == before
