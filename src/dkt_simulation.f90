@@ -30,7 +30,7 @@ module dkt_simulation
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open, log_close
-  use dkt_filesystem, only: make_directories, rename_file, remove_file
+  use dkt_filesystem, only: make_directories, rename_file, remove_file, path_exists
   use dkt_registry, only: itoa
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   implicit none
@@ -378,7 +378,12 @@ contains
     type(simulation_t), intent(inout) :: sim
     character(len=:), allocatable :: dir, err, nml
     character(len=256) :: msg
-    integer :: ios
+    character(len=4096) :: found
+    integer :: ios, k
+    !> the files of a run besides <name>.h5, as suffixes of the scene name
+    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
+                                                    '.xdmf           ', '_diagnostics.csv', &
+                                                    '.checkpoint     ', '.finished       ']
     character(len=64) :: pnames(12)
     real(wp) :: pvalues(12), s(0:8)
     logical :: ok
@@ -407,6 +412,23 @@ contains
                                                                '_diagnostics.csv')
       if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
       return
+    end if
+    ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
+    ! that a file that appears meanwhile is not clobbered)
+    if (.not. sim%cfg%output%overwrite) then
+      found = ''
+      if (sim%dom%rank == 0) then
+        do k = 1, size(RUN_FILES)
+          if (path_exists(dir//'/'//sim%cfg%name//trim(RUN_FILES(k)))) &
+            found = trim(found)//', '//dir//'/'//sim%cfg%name//trim(RUN_FILES(k))
+        end do
+      end if
+      ok = len_trim(found) == 0
+      call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+      if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir// &
+                                   ''' holds files of an earlier run of this scene ('// &
+                                   trim(found(3:))//'); set output.overwrite = .true., '// &
+                                   'choose another output.dir, or resume with --restart')
     end if
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)

@@ -462,6 +462,28 @@ def test_existing_output_is_never_overwritten_without_output_overwrite(tmp_path:
     assert list(cwd.iterdir()) == []
 
 
+def test_any_file_of_an_earlier_run_stops_a_new_one(tmp_path: Path) -> None:
+    """Not only the .h5: an output directory holding another file of an earlier run of the
+    same scene (here only its log, the .h5 removed) stops the run with one message naming the
+    file and the ways out; the log stays byte for byte. output.overwrite lets the run go."""
+    scene, _ = write_scene(tmp_path)
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    first = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
+    assert first.returncode == 0, first.stderr
+    (outdir / "bad.h5").unlink()
+    before = tree_digest(outdir)
+    again = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
+    assert again.returncode != 0
+    lines = error_lines(again.stderr)
+    assert len(lines) == 1, again.stderr
+    assert "bad.log" in lines[0] and "output.overwrite" in lines[0] and "--restart" in lines[0]
+    assert tree_digest(outdir) == before
+    ok = dkt([str(scene), "--set", f"output.dir={outdir}", "--set", "output.overwrite=.true."], cwd)
+    assert ok.returncode == 0, ok.stderr
+
+
 def test_an_option_can_mend_a_bad_value_in_the_file(tmp_path: Path) -> None:
     """README: ranges are checked after the file and every --set are applied. Catches a check
     made while reading the file (the run would stop on tau = 0.3)."""
