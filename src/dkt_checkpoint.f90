@@ -1,13 +1,14 @@
 !> Checkpoint files: everything a run needs to continue bit for bit, in one parallel HDF5 file
-!> `<dir>/<name>_chk_<step>.h5` (DESIGN "Output"):
+!> `<dir>/<name>_chk_<step>.h5` (DESIGN "Output"), as datasets:
 !>
 !> - /f: the populations of every node (h5py shape (9, ny, nx)), written and read by rows, so
 !>   a run may resume on another number of ranks;
-!> - /state: the step, the window shift and the number of series samples written so far
-!>   (integers), the particles (10 values each: x, y, u, v, omega, fx, fy, torque, cx, cy in
-!>   lattice units) and the kissing episodes so far (in_episode, t_start, t_end, gap_min);
-!> - attributes nx, ny, dx, dt, particles and the input as given, to refuse a checkpoint that
-!>   belongs to another lattice.
+!> - /state_int: step, window shift, series samples written so far, nx, ny, number of
+!>   particles, number of episodes, in_episode (0/1), length of /given;
+!> - /state_real: dx, dt (to refuse a checkpoint of another lattice or time step);
+!> - /particles (h5py (n, 10)): x, y, u, v, omega, fx, fy, torque, cx, cy in lattice units;
+!> - /episodes (h5py (3, n_episodes)): start, end and smallest gap of the episodes so far;
+!> - /given: the input as read, as character codes, for the record.
 !>
 !> A checkpoint is written to `<file>.tmp` and renamed when complete, so a failed write (disk
 !> full, directory gone) never damages the previous checkpoint.

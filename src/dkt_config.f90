@@ -15,6 +15,7 @@ module dkt_config
   private
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
+  public :: kiss_enter_cells, kiss_thresholds
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -507,6 +508,26 @@ contains
     end associate
   end function window_bottom
 
+  !> The entry threshold of a kissing episode in lattice spacings as the input gives it:
+  !! diagnostics.enter_cells, or collision.range + 1 when that is 0 (E10 holds a kissing pair
+  !! just inside its range; the default entry is one spacing beyond it).
+  pure real(wp) function kiss_enter_cells(c) result(cells)
+    type(config_t), intent(in) :: c
+    cells = c%diagnostics%enter_cells
+    if (cells <= 0.0_wp) cells = c%collision%range + 1.0_wp
+  end function kiss_enter_cells
+
+  !> The gaps D_r (lattice spacings) at which a kissing episode of particles 1 and 2 starts
+  !! and ends (SPEC §6): each the larger of its count of spacings and its fraction of D_1.
+  pure subroutine kiss_thresholds(c, enter, release)
+    type(config_t), intent(in) :: c
+    real(wp), intent(out) :: enter, release
+    real(wp) :: d1
+    d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
+    enter = max(kiss_enter_cells(c), c%diagnostics%enter_d1*d1)
+    release = max(c%diagnostics%release_cells, c%diagnostics%release_d1*d1)
+  end subroutine kiss_thresholds
+
   !> Every check of a configuration: each key's range or choices, then the rules that join
   !! keys. Messages name where the key was set (file:line or --set), else the file.
   !! `warnings`: newline-separated, '' if none; incomplete when `err` is set.
@@ -796,12 +817,9 @@ contains
     !> The episode thresholds of &diagnostics (in spacings) leave a hysteresis: release > enter.
     subroutine check_thresholds()
       real(wp) :: d1, enter, release
+      d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
+      call kiss_thresholds(c, enter, release)
       associate (g => c%diagnostics)
-        d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
-        enter = g%enter_cells
-        if (enter <= 0.0_wp) enter = c%collision%range + 1.0_wp
-        enter = max(enter, g%enter_d1*d1)
-        release = max(g%release_cells, g%release_d1*d1)
         if (release <= enter) &
           err = src('release_cells', 'diagnostics')//': &diagnostics release_cells = '// &
                 val('diagnostics', 'release_cells')//' and release_d1 = '// &

@@ -8,7 +8,7 @@ module dkt_simulation
   use dkt_kinds, only: wp, i8, pi, cs2
   use dkt_errors, only: fatal_all, fatal_local, warn
   use dkt_config, only: config_t, lattice_params_t, config_output_dir, window_bottom, &
-                        config_to_namelist
+                        config_to_namelist, kiss_thresholds, kiss_enter_cells
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
@@ -99,7 +99,7 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
-    real(wp) :: enter
+    real(wp) :: enter, release
 
     sim%cfg = cfg
     sim%lp = lp
@@ -130,15 +130,8 @@ contains
     if (sim%particles_on) call setup_particles(sim)
     sim%pair_on = cfg%particles%count >= 2
     if (sim%pair_on) then
-      ! thresholds of a kissing episode (SPEC §6) in lattice spacings
-      ! (E10 holds a kissing pair just inside collision.range: the default entry is one spacing
-      ! beyond it)
-      associate (d => cfg%diagnostics, d1 => maxval(cfg%particles%diameter(1:2))/lp%dx)
-        enter = d%enter_cells
-        if (enter <= 0.0_wp) enter = cfg%collision%range + 1.0_wp
-        call pair_diag_init(sim%pair, max(enter, d%enter_d1*d1), &
-                            max(d%release_cells, d%release_d1*d1))
-      end associate
+      call kiss_thresholds(cfg, enter, release)
+      call pair_diag_init(sim%pair, enter, release)
     end if
     sim%stopped_early = ''
   end subroutine simulation_setup
@@ -532,10 +525,7 @@ contains
         sim%step = n
         t = n*lp%dt
         y0 = 0.0_wp
-        if (sim%window_on) then
-          call follow_particles(sim, n)
-          y0 = window_offset(sim%win, lp%dx)
-        end if
+        if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
         if (sim%pair_on) call pair_sample(sim, n)
         last = n == lp%steps .or. len(sim%stopped_early) > 0
 
@@ -742,7 +732,8 @@ contains
 
   !> One step with particles: the halo is completed before the sweep because a boundary link
   !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
-  !! are set, the lattice swept, forces summed (E7) and the particles moved (E8–E11).
+  !! are set, the lattice swept, forces summed (E7), the particles moved (E8–E11) and the
+  !! window moved after them (SPEC §5), before the boundary links are found for the next step.
   subroutine particle_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
@@ -759,19 +750,19 @@ contains
     ! the owners move their particles (fixed ones stay) and send every rank the new state
     call particles_move(sim%parts, sim%dom, sim%f_next, &
                         sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
+    if (sim%window_on) call follow_particles(sim, n)
     if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
 
-  !> SPEC §5: move the window with the lowest particle; a particle near the upper end (the
-  !! pair has separated by more than the window holds) ends the run after this step.
+  !> SPEC §5: move the window (the new populations in f_next) with the lowest particle; a
+  !! particle near the upper end (the pair has separated by more than the window holds) ends
+  !! the run after this step.
   subroutine follow_particles(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    logical :: moved
     integer :: k
     character(len=320) :: msg
-    call window_follow(sim%win, sim%dom, sim%parts, sim%f, moved)
-    if (moved) call particles_find_links(sim%parts, sim%dom)
+    call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
     k = window_escaped(sim%win, sim%parts, sim%lp%ny)
     if (k > 0) then
       write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
@@ -876,9 +867,7 @@ contains
       call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter', e%enter*dx)
       call io_write_attribute(sim%io, '/diagnostics', 'kiss_release', e%release*dx)
       call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter_cells', &
-                              merge(sim%cfg%diagnostics%enter_cells, &
-                                    sim%cfg%collision%range + 1.0_wp, &
-                                    sim%cfg%diagnostics%enter_cells > 0.0_wp))
+                              kiss_enter_cells(sim%cfg))
       call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
                               sim%cfg%diagnostics%release_cells)
       call io_write_attribute(sim%io, '/diagnostics', 'd1', maxval(d))

@@ -49,16 +49,14 @@ contains
 
   !> Move the window down, a row at a time, until the lowest free particle is again within one
   !! spacing of `below` above the lower end. f holds the populations of rows 1..nyl between
-  !! two steps. `moved`: the window moved (the caller renews the boundary links).
-  subroutine window_follow(win, dom, ps, f, moved)
+  !! two steps; the caller finds the boundary links after it.
+  subroutine window_follow(win, dom, ps, f)
     type(window_t), intent(inout) :: win
     type(domain_t), intent(in) :: dom
     type(particles_t), intent(inout) :: ps
     real(wp), intent(inout) :: f(0:, 0:, 0:)
-    logical, intent(out) :: moved
     real(wp) :: lowest
     integer :: k
-    moved = .false.
     do
       lowest = huge(1.0_wp)
       do k = 1, ps%n
@@ -70,7 +68,6 @@ contains
         ps%p(k)%y = ps%p(k)%y + 1.0_wp
       end do
       win%shift = win%shift + 1
-      moved = .true.
     end do
   end subroutine window_follow
 

@@ -5,6 +5,7 @@
 module dkt_xdmf
   use dkt_kinds, only: wp
   use dkt_filesystem, only: rename_file
+  use dkt_registry, only: itoa
   use dkt_errors, only: fatal_local
   implicit none
   private
@@ -173,14 +174,6 @@ contains
       end select
     end do
   end function xml_escape
-
-  pure function itoa(i) result(s)
-    integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
-  end function itoa
 
   !> Shortest-safe text of a real: 17 significant digits read back to the same value.
   pure function rtoa(x) result(s)

@@ -190,34 +190,22 @@ def test_a_bad_restart_file_is_refused_with_a_clear_message(tmp_path: Path) -> N
     foreign = tmp_path / "foreign.h5"
     with h5py.File(foreign, "w") as h5:
         h5["x"] = np.zeros(3)
+
+    def resume(path: str, *sets: str) -> subprocess.CompletedProcess[str]:
+        args = [str(INPUT / "case0.nml")]
+        for s in [*SETS, *sets, f"output.dir={out}"]:
+            args += ["--set", s]
+        return run_args([*args, "--restart", path], ranks=2, timeout=60)
+
     cases = {
         str(tmp_path / "missing.h5"): "not found",
         str(foreign): "is not a dktlbm checkpoint",
     }
     for path, expected in cases.items():
-        args = [
-            str(INPUT / "case0.nml"),
-            *sum((["--set", s] for s in SETS), []),
-            "--set",
-            f"output.dir={out}",
-            "--restart",
-            path,
-        ]
-        proc = run_args(args, ranks=2, timeout=60)
+        proc = resume(path)
         assert proc.returncode != 0
         assert expected in proc.stderr and path in proc.stderr, proc.stderr
-    checkpoint = str(out / "case0_chk_000000100.h5")
-    args = [
-        str(INPUT / "case0.nml"),
-        *sum((["--set", s] for s in SETS), []),
-        "--set",
-        "lbm.cells_per_diameter=12",
-        "--set",
-        f"output.dir={out}",
-        "--restart",
-        checkpoint,
-    ]
-    proc = run_args(args, ranks=2, timeout=60)
+    proc = resume(str(out / "case0_chk_000000100.h5"), "lbm.cells_per_diameter=12")
     assert proc.returncode != 0
     assert "the checkpoint holds a lattice of" in proc.stderr, proc.stderr
     assert (out / "case0.h5").read_bytes() == before

@@ -118,6 +118,25 @@ def single_disk_scenes(
     return paths
 
 
+def window_and_static(
+    tmp_path: Path, y0: float = Y0, t_end: float = T_END
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Run the two single-disk scenes side by side (one rank each) and return their /particles
+    groups, sampled at the same times."""
+    window_nml, static_nml = single_disk_scenes(tmp_path, y0, t_end)
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        jobs = [
+            pool.submit(run, nml, 1, [], tmp_path / nml.stem, timeout=900)
+            for nml in (window_nml, static_nml)
+        ]
+        for job in jobs:
+            job.result()
+    w = read_group(tmp_path / "window" / "window.h5", "particles")
+    s = read_group(tmp_path / "static" / "static.h5", "particles")
+    assert np.array_equal(w["t"], s["t"])
+    return w, s
+
+
 def test_a_disk_in_the_window_falls_like_in_a_tall_static_channel(tmp_path: Path) -> None:
     """One disk settles 6 s (about 33 D, more than the 31 D window: every row of the initial
     window has been dropped and the disk has met rows that entered at the bottom) in the window
@@ -126,17 +145,7 @@ def test_a_disk_in_the_window_falls_like_in_a_tall_static_channel(tmp_path: Path
     Catches: positions written relative to the window or off by a row per shift (one spacing is
     8 % of D), particles not moved with the rows, stale boundary links after a shift, fresh rows
     that are not at rest, a window that keeps too little fluid below the disk."""
-    window_nml, static_nml = single_disk_scenes(tmp_path)
-    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
-        jobs = [
-            pool.submit(run, nml, 1, [], tmp_path / nml.stem, timeout=600)
-            for nml in (window_nml, static_nml)
-        ]
-        for job in jobs:
-            job.result()
-    w = read_group(tmp_path / "window" / "window.h5", "particles")
-    s = read_group(tmp_path / "static" / "static.h5", "particles")
-    assert np.array_equal(w["t"], s["t"])
+    w, s = window_and_static(tmp_path)
     assert abs(w["t"][-1] - T_END) < 1e-9
 
     offset = w["window_offset"]
@@ -170,17 +179,7 @@ def test_the_window_adds_no_error_over_three_window_lengths(tmp_path: Path) -> N
     transient with its oscillation. A row lost or gained per shift would move the disk by 8 %
     of D per shift, hundreds of shifts here."""
     y0, t_end = 25.0, 18.0  # the window's lower end starts at 25 - 16 D = 21.8 cm, a row face
-    window_nml, static_nml = single_disk_scenes(tmp_path, y0, t_end)
-    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
-        jobs = [
-            pool.submit(run, nml, 1, [], tmp_path / nml.stem, timeout=900)
-            for nml in (window_nml, static_nml)
-        ]
-        for job in jobs:
-            job.result()
-    w = read_group(tmp_path / "window" / "window.h5", "particles")
-    s = read_group(tmp_path / "static" / "static.h5", "particles")
-    assert np.array_equal(w["t"], s["t"])
+    w, s = window_and_static(tmp_path, y0, t_end)
     length = (BELOW + ABOVE) * D
     offset = w["window_offset"]
     print(f"the window moved {(offset[0] - offset[-1]) / length:.2f} window lengths")
