@@ -3,7 +3,8 @@
 !> stream–collide, open ends, guards, output.
 module dkt_simulation
   use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size, &
-                     MPI_Allreduce, MPI_IN_PLACE, MPI_INTEGER, MPI_BOR
+                     MPI_Iallreduce, MPI_Wait, MPI_Request, MPI_STATUS_IGNORE, MPI_INTEGER, &
+                     MPI_BOR
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, i8, pi, cs2
   use dkt_errors, only: fatal_all, fatal_local, warn
@@ -485,6 +486,9 @@ contains
     type(simulation_t), intent(inout) :: sim
     real(wp), pointer, contiguous :: tmp(:, :, :)
     integer :: n, nyl, nx, nxp, last_progress, first, flags
+    integer, asynchronous :: flags_out, flags_in !! buffers of the flag reduction in flight
+    type(MPI_Request) :: request
+    logical :: pending
     real(wp) :: t, mach, t_start, t_last, y0, t_checkpoint
     logical :: last
     character(len=256) :: line
@@ -504,6 +508,7 @@ contains
       t_last = t_start
       t_checkpoint = t_start
       last_progress = sim%step
+      pending = .false.
       do n = first, lp%steps
         if (sim%particles_on) then
           call particle_step(sim, n)
@@ -547,16 +552,15 @@ contains
           end if
         end if
         ! checkpoints: every checkpoint_every steps, every checkpoint_wall seconds (rank 0's
-        ! clock), and before stopping on a signal or at the wall limit; all ranks decide alike
+        ! clock), and before stopping on a signal or at the wall limit. The ranks agree on the
+        ! signal and clock flags with a reduction started one step earlier, so that no step
+        ! waits for it; every rank acts on the same flags at the same step.
         flags = 0
-        if (signal_caught() /= 0) flags = ibset(flags, 0)
-        if (sim%dom%rank == 0) then
-          if (cfg%run%checkpoint_wall > 0.0_wp .and. &
-              MPI_Wtime() - t_checkpoint >= cfg%run%checkpoint_wall) flags = ibset(flags, 1)
-          if (cfg%run%wall_limit > 0.0_wp .and. MPI_Wtime() - t_start >= cfg%run%wall_limit) &
-            flags = ibset(flags, 2)
+        if (pending) then
+          call MPI_Wait(request, MPI_STATUS_IGNORE)
+          flags = flags_in
+          pending = .false.
         end if
-        call MPI_Allreduce(MPI_IN_PLACE, flags, 1, MPI_INTEGER, MPI_BOR, sim%dom%comm)
         if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
           call write_checkpoint(sim)
           sim%interrupted = .true.
@@ -576,6 +580,17 @@ contains
             t_checkpoint = MPI_Wtime()
           end if
         end if
+        flags_out = 0
+        if (signal_caught() /= 0) flags_out = ibset(flags_out, 0)
+        if (sim%dom%rank == 0) then
+          if (cfg%run%checkpoint_wall > 0.0_wp .and. &
+              MPI_Wtime() - t_checkpoint >= cfg%run%checkpoint_wall) &
+            flags_out = ibset(flags_out, 1)
+          if (cfg%run%wall_limit > 0.0_wp .and. MPI_Wtime() - t_start >= cfg%run%wall_limit) &
+            flags_out = ibset(flags_out, 2)
+        end if
+        call MPI_Iallreduce(flags_out, flags_in, 1, MPI_INTEGER, MPI_BOR, sim%dom%comm, request)
+        pending = .true.
       end do
       n = sim%step
       t = MPI_Wtime() - t_start
