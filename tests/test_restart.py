@@ -99,9 +99,9 @@ def test_half_a_run_then_a_restart_equals_the_whole_run(
 
 def test_sigterm_checkpoints_exits_zero_and_the_resumed_run_matches(tmp_path: Path) -> None:
     """SIGTERM to the ranks (what a batch system sends before the time limit) mid-run: the run
-    writes a checkpoint at the next step boundary, says how to resume, exits 0 and leaves the
-    newest checkpoint named in case0.checkpoint; resumed on 3 ranks it ends equal to the run
-    that never stopped."""
+    writes a checkpoint within two steps (at a step boundary), says how to resume, exits 0 and
+    leaves the newest checkpoint named in case0.checkpoint; resumed on 3 ranks it ends equal to
+    the run that never stopped."""
     reference = tmp_path / "reference"
     run("case0.nml", 2, LONG_SETS, reference, timeout=600)
     out = tmp_path / "run"
