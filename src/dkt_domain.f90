@@ -6,6 +6,10 @@
 !> population planes do not sit a multiple of 4 KiB apart (cache-set aliasing made a 512 x 512
 !> lattice run 2-4 times slower than 500 x 500). Only the three populations that cross a face
 !> travel in the halo exchange.
+!>
+!> When the rows do not split evenly, slabs differ by one row. nxp is therefore chosen for the
+!> tallest slab and is the same on every rank, and every exchange between slabs sends columns
+!> that both sides count from nx alone: a message never depends on the sender's slab height.
 module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
@@ -86,7 +90,9 @@ contains
       return
     end if
     call domain_rows_for(ny, dom%nranks, dom%rank, dom%y0, dom%nyl)
-    dom%nxp = padded_extent(nx, dom%nyl)
+    ! one padded extent for all ranks (the tallest slab's), so a row means the same on both
+    ! sides of every exchange
+    dom%nxp = padded_extent(nx, (ny + dom%nranks - 1)/dom%nranks)
 
     if (dom%rank > 0) then
       dom%below = dom%rank - 1

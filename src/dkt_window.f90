@@ -84,28 +84,31 @@ contains
   end function window_escaped
 
   !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of
-  !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest.
+  !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest. The message
+  !! holds columns 0..nx+1 of the nine populations, a size both sides compute from nx: the
+  !! padding beyond nx+1 is never sent.
   subroutine shift_rows(dom, f)
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     real(wp), allocatable :: sbuf(:, :), rbuf(:, :)
     real(wp) :: feq(0:8)
-    integer :: j, i, nyl
+    integer :: j, i, nyl, last
     nyl = dom%nyl
-    allocate (sbuf(0:size(f, 1) - 1, 0:8), rbuf(0:size(f, 1) - 1, 0:8))
-    sbuf = f(:, nyl, :)
+    last = dom%nx + 1
+    allocate (sbuf(0:last, 0:8), rbuf(0:last, 0:8))
+    sbuf = f(0:last, nyl, :)
     call MPI_Sendrecv(sbuf, size(sbuf), mpi_wp, dom%above, TAG_SHIFT, rbuf, size(rbuf), mpi_wp, &
                       dom%below, TAG_SHIFT, dom%comm, MPI_STATUS_IGNORE)
     do j = nyl, 2, -1
-      f(:, j, :) = f(:, j - 1, :)
+      f(0:last, j, :) = f(0:last, j - 1, :)
     end do
     if (dom%has_lower_end) then
       feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
-      do i = 0, size(f, 1) - 1
+      do i = 0, last
         f(i, 1, :) = feq
       end do
     else
-      f(:, 1, :) = rbuf
+      f(0:last, 1, :) = rbuf
     end if
   end subroutine shift_rows
 
