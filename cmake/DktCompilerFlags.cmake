@@ -5,6 +5,9 @@
 #   Release: -O3 (+ -march=native when DKTLBM_NATIVE is ON)
 #   Debug:   -g -O0, all warnings, run-time checks (all but the array-temporary notes), traps on
 #            invalid/zero/overflow, backtraces
+#   DKTLBM_SANITIZE=address (any build type; the `asan` preset uses Debug): AddressSanitizer on
+#            every dktlbm target, compiled and linked, so an overrun through an MPI buffer (which
+#            -fcheck=bounds cannot see: MPI copies through C pointers) stops the run with a report
 
 set(_dkt_release "")
 set(_dkt_debug "")
@@ -50,6 +53,19 @@ else()
   message(FATAL_ERROR "dktlbm: CMAKE_BUILD_TYPE must be Release or Debug, not '${CMAKE_BUILD_TYPE}'")
 endif()
 
+set(DKTLBM_SANITIZE "" CACHE STRING "Sanitizer for every dktlbm target: '' (none) or 'address'")
+set_property(CACHE DKTLBM_SANITIZE PROPERTY STRINGS "" address)
+set(_dkt_link_flags "")
+if(DKTLBM_SANITIZE STREQUAL "address")
+  if(NOT CMAKE_Fortran_COMPILER_ID STREQUAL "GNU")
+    message(FATAL_ERROR "dktlbm: DKTLBM_SANITIZE=address is set up for gfortran only")
+  endif()
+  list(APPEND _dkt_type_flags -fsanitize=address -fno-omit-frame-pointer)
+  set(_dkt_link_flags -fsanitize=address)
+elseif(NOT DKTLBM_SANITIZE STREQUAL "")
+  message(FATAL_ERROR "dktlbm: DKTLBM_SANITIZE must be '' or 'address', not '${DKTLBM_SANITIZE}'")
+endif()
+
 # Everything the compiler sees for dktlbm's sources, as one string (for dkt_build_flags).
 set(DKT_FORTRAN_FLAGS "${CMAKE_Fortran_FLAGS} ${CMAKE_Fortran_FLAGS_${_dkt_config}}")
 list(JOIN _dkt_type_flags " " _dkt_type_string)
@@ -59,4 +75,5 @@ string(STRIP "${DKT_FORTRAN_FLAGS}" DKT_FORTRAN_FLAGS)
 #> Give a dktlbm target (library, program or test) the flags of the build type.
 function(dkt_set_fortran_flags target)
   target_compile_options(${target} PRIVATE ${_dkt_type_flags})
+  target_link_options(${target} PRIVATE ${_dkt_link_flags})
 endfunction()
