@@ -38,8 +38,8 @@ def test_fixed_cylinder_drag_and_lift_match_schafer_turek_2d1(tmp_path: Path) ->
     assert abs(cl - 0.0106) < 0.10 * 0.0106, f"C_L = {cl:.5f}"
 
 
-# the digitised curves live in shared/refdata beside the repository (DKTLBM_REFDATA overrides)
-REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT.parent / "shared" / "refdata"))
+# the digitised curves ship with the tests (tests/refdata/README.md); DKTLBM_REFDATA overrides
+REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT / "tests" / "refdata"))
 
 
 def koblitz(name: str) -> np.ndarray:
@@ -76,7 +76,7 @@ def test_single_disk_follows_the_koblitz_trajectory_and_velocity(
     single_run: dict[str, np.ndarray],
 ) -> None:
     """Height and settling velocity against the digitised curves of Koblitz et al. (2017,
-    Fig. 6; refdata/README.md): height within 0.2 D and velocity within 0.02 u_ref (3.5 % of
+    Fig. 6; tests/refdata/README.md): height within 0.2 D and velocity within 0.02 u_ref (3.5 % of
     the peak) at every digitised time from t_ref to 0.7 s, at 12.5 lattice spacings per
     diameter. The curves carry about 1 % of full scale of digitisation noise (0.16 D, 0.006
     u_ref); their first points (t < t_ref) scatter by 0.02 u_ref around zero where the disk,
