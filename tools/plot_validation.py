@@ -6,7 +6,7 @@
 UHLMANN.h5: a run of input/uhlmann.nml (to 0.3 s); its settling speeds and positions along
 gravity against Uhlmann (2005), Fig. 6 (tests/refdata/uhlmann2005_dkt, or $DKTLBM_REFDATA).
 CASE0_BOX.h5: a run of input/case0_box.nml; its surface gap against time, with the published
-kissing and tumbling times of SPEC §8 marked. Writes DIR/uhlmann_validation.png and
+kissing and tumbling times of docs/model.md §8 marked. Writes DIR/uhlmann_validation.png and
 DIR/case0_box_validation.png (DIR default docs/img).
 """
 
