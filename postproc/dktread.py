@@ -7,7 +7,7 @@
 Units are the file's: cm, g, s. The pair is particles 1 and 2; D_1 is the larger diameter.
 When the file has a /diagnostics group its series, thresholds, pattern and episodes are used
 as written; otherwise (older files, scenes without a pair group) they are computed here from
-/particles with the same rules (SPEC §6):
+/particles with the same rules (docs/model.md §6):
 
     enter   = max(enter_cells * dx, enter_d1 * D_1)      defaults 2 spacings, 0.05 D_1
     release = max(release_cells * dx, release_d1 * D_1)  defaults 4 spacings, 0.25 D_1
@@ -34,12 +34,12 @@ from typing import Any
 
 import numpy as np
 
-# SPEC §6: t_ref = sqrt(H/g) with H = 18 cm, g = 980 cm/s^2
+# docs/model.md §6: t_ref = sqrt(H/g) with H = 18 cm, g = 980 cm/s^2
 DEFAULT_T_REF = 0.135526
 DEFAULT_H_REF = 18.0
 DEFAULT_GRAVITY = 980.0
-# kissing-episode thresholds (SPEC §6), each the larger of a number of lattice spacings and a
-# fraction of D_1
+# kissing-episode thresholds (docs/model.md §6), each the larger of a number of lattice spacings and
+# a fraction of D_1
 ENTER_CELLS = 2.0
 ENTER_D1 = 0.05
 RELEASE_CELLS = 4.0
@@ -197,7 +197,7 @@ def open_h5(path: str | Path) -> Iterator[Any]:
 class Run:
     """One run file: /particles series (n samples, count particles), scales and metadata.
     Scales come from /diagnostics when present, else from the namelist in /run, else the
-    SPEC §6 defaults."""
+    docs/model.md §6 defaults."""
 
     path: Path
     name: str
@@ -367,7 +367,7 @@ class Thresholds:
     release: float
     dx: float
     d1: float
-    rule: str = "SPEC §6 defaults"
+    rule: str = "docs/model.md §6 defaults"
 
     @property
     def enter_cells(self) -> float:
@@ -388,7 +388,8 @@ class Thresholds:
 
 def thresholds(dx: float, d1: float, enter_cells: float = ENTER_CELLS,
                enter_d1: float = ENTER_D1, release_cells: float = RELEASE_CELLS,
-               release_d1: float = RELEASE_D1, rule: str = "SPEC §6 defaults") -> Thresholds:
+               release_d1: float = RELEASE_D1,
+               rule: str = "docs/model.md §6 defaults") -> Thresholds:
     """enter = max(enter_cells dx, enter_d1 D_1), release = max(release_cells dx,
     release_d1 D_1); a spacing that is unknown (NaN) counts as 0."""
     cells = dx if math.isfinite(dx) else 0.0
@@ -467,8 +468,8 @@ class Pair:
 
 
 def reynolds_and_drag(run: Run) -> tuple[np.ndarray, np.ndarray]:
-    """Re_a = rho_f |U| D_p / mu and C_d = F_y / (rho_f U_p^2 D_p / 2) (SPEC E12, U_p = |U|,
-    NaN while U_p = 0), each (n, count), from /particles."""
+    """Re_a = rho_f |U| D_p / mu and C_d = F_y / (rho_f U_p^2 D_p / 2) (docs/model.md E12, U_p =
+    |U|, NaN while U_p = 0), each (n, count), from /particles."""
     speed = np.hypot(run.series["u"], run.series["v"])
     dp = run.diameters[None, :]
     re = run.rho_f * speed * dp / run.mu
@@ -522,7 +523,7 @@ def _limits(run: Run, d1: float, limits: dict[str, float] | None,
     if given:
         rule = "given on the command line"
     elif base == _default_limits():
-        rule = "SPEC §6 defaults"
+        rule = "docs/model.md §6 defaults"
     else:
         rule = "the run's settings"
     return thresholds(run.dx, d1, rule=rule, **{**base, **given})

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The drag coefficient of each particle against t*: C_d = F_y / (rho_f U_p^2 D_p / 2)
-(SPEC E12), from /diagnostics/cd for the pair when the file has it, else from /particles
+(docs/model.md E12), from /diagnostics/cd for the pair when the file has it, else from /particles
 (U_p = |U|). C_d is undefined (not drawn) while a particle is at rest, and very large just
 after release, so the default vertical range follows the bulk of the values (--ylim to set
 it)."""

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Per-particle trajectories against t*: x/W, y/H, u/sqrt(Hg), v/sqrt(Hg) and
-Omega/(2 pi/t_r) in stacked panels (SPEC §6 normalisation; H = 18 cm, t_r = sqrt(H/g))."""
+Omega/(2 pi/t_r) in stacked panels (docs/model.md §6 normalisation; H = 18 cm, t_r = sqrt(H/g))."""
 
 from __future__ import annotations
 

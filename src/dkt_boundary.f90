@@ -1,5 +1,5 @@
-!> Channel boundaries (SPEC §2): side walls and closed ends by half-way bounce-back, periodic
-!> sides and ends, and open ends by non-equilibrium extrapolation (E5).
+!> Channel boundaries (docs/model.md §2): side walls and closed ends by half-way bounce-back,
+!> periodic sides and ends, and open ends by non-equilibrium extrapolation (E5).
 !>
 !> Bounce-back and periodicity are applied as ghost values before the pull sweep: the ghost
 !> that node x pulls population i from holds f*_opp(i)(x) (wall) or the periodic image.

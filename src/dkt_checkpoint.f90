@@ -1,5 +1,5 @@
 !> Checkpoint files: everything a run needs to continue bit for bit, in one parallel HDF5 file
-!> `<dir>/<name>_chk_<step>.h5` (DESIGN "Output"), as datasets:
+!> `<dir>/<name>_chk_<step>.h5` (docs/design.md, "Output"), as datasets:
 !>
 !> - /f: the populations of every node (h5py shape (9, ny, nx)), written and read by rows, so
 !>   a run may resume on another number of ranks;

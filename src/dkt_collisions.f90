@@ -1,7 +1,7 @@
-!> Short-range repulsive forces between particles and against walls (Wan & Turek 2006; SPEC
-!> E10–E11). They keep resolved particles from overlapping where the lattice can no longer
-!> resolve the lubrication film. Lattice units; a pair further apart than the sum of the radii
-!> plus the range costs one distance test.
+!> Short-range repulsive forces between particles and against walls (Wan & Turek 2006;
+!> docs/model.md E10–E11). They keep resolved particles from overlapping where the lattice can no
+!> longer resolve the lubrication film. Lattice units; a pair further apart than the sum of the
+!> radii plus the range costs one distance test.
 module dkt_collisions
   use dkt_kinds, only: wp
   implicit none

@@ -59,8 +59,8 @@ module dkt_config
 
   integer, parameter, public :: MAX_PARTICLES = 16 !! most particles a scene may hold
 
-  !> &particles: rigid circular particles (SPEC 3), in physical units. Element k of each array
-  !! belongs to particle k; only particles 1..count are used.
+  !> &particles: rigid circular particles (docs/model.md §3), in physical units. Element k of each
+  !! array belongs to particle k; only particles 1..count are used.
   type, public :: particles_cfg_t
     integer :: count = 0                                !! number of particles, 0..MAX_PARTICLES
     real(wp) :: diameter(MAX_PARTICLES) = 0.2_wp        !! cm
@@ -74,7 +74,7 @@ module dkt_config
     real(wp) :: gravity = 980.0_wp                      !! cm/s^2, along -y on the particles (E9)
   end type particles_cfg_t
 
-  !> &pair: the two particles of a DKT scene (SPEC §7), set by the diameter ratio and the
+  !> &pair: the two particles of a DKT scene (docs/model.md §7), set by the diameter ratio and the
   !! initial distance. When gamma > 0 it writes particles 1 (the larger, D_1) and 2 (D_1/gamma)
   !! of &particles, both free, on the channel centreline.
   type, public :: pair_cfg_t
@@ -88,7 +88,7 @@ module dkt_config
   end type pair_cfg_t
 
   !> &window: the computational window that follows the particles down an infinite channel
-  !! (SPEC §5). Lengths in D_1, the largest diameter.
+  !! (docs/model.md §5). Lengths in D_1, the largest diameter.
   type, public :: window_cfg_t
     logical :: enabled = .false.            !! follow the particles; domain height/ends derived
     real(wp) :: below = 10.0_wp             !! D_1 from the lowest centre down to the lower end
@@ -97,8 +97,8 @@ module dkt_config
                                             !! the run (the pair separated beyond the window)
   end type window_cfg_t
 
-  !> &diagnostics: the thresholds of a kissing episode (SPEC §6), each the larger of a number
-  !! of lattice spacings and a fraction of D_1.
+  !> &diagnostics: the thresholds of a kissing episode (docs/model.md §6), each the larger of a
+  !! number of lattice spacings and a fraction of D_1.
   type, public :: diagnostics_cfg_t
     real(wp) :: enter_cells = 0.0_wp        !! an episode starts at D_r <= this many spacings
                                             !! (0 = collision.range + 1, just outside E10) ..
@@ -125,7 +125,8 @@ module dkt_config
   type, public :: run_cfg_t
     real(wp) :: t_end = 1.0_wp            !! s, simulated time (ignored when steps > 0)
     integer :: steps = 0                  !! time steps; 0 = from t_end
-    real(wp) :: t_ref = 0.135526_wp       !! s, t* = t/t_ref; sqrt(18 cm / 980 cm/s^2) (SPEC 6)
+    real(wp) :: t_ref = 0.135526_wp       !! s, t* = t/t_ref; sqrt(18 cm / 980 cm/s^2)
+                                          !! (docs/model.md §6)
     integer :: progress_every = 1000      !! steps between progress lines; 0 = none
     integer :: guard_every = 100          !! steps between NaN/Mach guards
     real(wp) :: mach_limit = 0.3_wp       !! largest allowed u/c_s
@@ -309,7 +310,8 @@ contains
                   'density of both particles', gt=0.0_wp)
 
     call add_logical(reg, 'window', 'enabled', c%window%enabled, 'follow the lowest '// &
-                     'particle down an infinite channel; sets the domain height and ends (SPEC 5)')
+                     'particle down an infinite channel; sets the domain height and ends '// &
+                     '(docs/model.md section 5)')
     call add_real(reg, 'window', 'below', c%window%below, '-', &
                   'window length below the lowest particle''s centre, in D_1', ge=1.0_wp)
     call add_real(reg, 'window', 'above', c%window%above, '-', &
@@ -518,7 +520,7 @@ contains
   end function kiss_enter_cells
 
   !> The gaps D_r (lattice spacings) at which a kissing episode of particles 1 and 2 starts
-  !! and ends (SPEC §6): each the larger of its count of spacings and its fraction of D_1.
+  !! and ends (docs/model.md §6): each the larger of its count of spacings and its fraction of D_1.
   pure subroutine kiss_thresholds(c, enter, release)
     type(config_t), intent(in) :: c
     real(wp), intent(out) :: enter, release
@@ -655,7 +657,7 @@ contains
     !> Particle k at t = 0: a fixed particle has no velocity, its centre lies in the channel
     !! at least one radius from every wall (touching a wall is an overlap: the bounce-back
     !! and the repulsion of E11 would start from a degenerate contact), and its diameter spans
-    !! enough lattice cells for the boundary links of E6-E7 (SPEC 3).
+    !! enough lattice cells for the boundary links of E6-E7 (docs/model.md §3).
     subroutine check_particle(k)
       integer, intent(in) :: k
       real(wp) :: cells

@@ -1,6 +1,6 @@
 !> Run diagnostics and guards: a non-finite population or a Mach number above the limit stops
-!> the run with what, where, when, and what to change. For a pair of particles (SPEC §6): the
-!> gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
+!> the run with what, where, when, and what to change. For a pair of particles (docs/model.md §6):
+!> the gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
 !> the kissing episodes with the DKT pattern they make.
 !>
 !> A kissing episode starts when the surface gap D_r falls to `enter` or below and ends when it
@@ -114,7 +114,7 @@ contains
     end select
   end function pair_pattern
 
-  !> SPEC §6: D_x = x_1 - x_2, D_y = y_1 - y_2, D_r = |X_1 - X_2| - (r_1 + r_2).
+  !> docs/model.md §6: D_x = x_1 - x_2, D_y = y_1 - y_2, D_r = |X_1 - X_2| - (r_1 + r_2).
   pure subroutine pair_gaps(x1, y1, r1, x2, y2, r2, gx, gy, gr)
     real(wp), intent(in) :: x1, y1, r1, x2, y2, r2
     real(wp), intent(out) :: gx, gy, gr

@@ -1,4 +1,4 @@
-!> The 1-D slab decomposition along the channel axis y (DESIGN "Data layout").
+!> The 1-D slab decomposition along the channel axis y (docs/design.md, "Data layout").
 !>
 !> Rank r holds global rows y0+1 .. y0+nyl of all nx columns. A lattice is stored as
 !> f(0:nxp-1, 0:nyl+1, 0:8): ghost columns 0 and nx+1 for the side boundaries, halo rows 0 and

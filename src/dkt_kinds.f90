@@ -12,5 +12,6 @@ module dkt_kinds
   type(MPI_Datatype), parameter :: mpi_wp = MPI_DOUBLE_PRECISION !! MPI type matching wp
 
   real(wp), parameter :: pi = 3.14159265358979323846264338327950288_wp
-  real(wp), parameter :: cs2 = 1.0_wp/3.0_wp !! lattice speed of sound squared, c_s^2 (SPEC §1)
+  !> lattice speed of sound squared, c_s^2 (docs/model.md §1)
+  real(wp), parameter :: cs2 = 1.0_wp/3.0_wp
 end module dkt_kinds

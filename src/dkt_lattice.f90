@@ -1,4 +1,4 @@
-!> The D2Q9 lattice (SPEC §1): velocities, weights, opposite directions, the Lallemand–Luo
+!> The D2Q9 lattice (docs/model.md §1): velocities, weights, opposite directions, the Lallemand–Luo
 !> moment matrix (E1) and the second-order equilibrium whose moments are E2.
 module dkt_lattice
   use dkt_kinds, only: wp, cs2
@@ -7,7 +7,7 @@ module dkt_lattice
   public :: q, ex, ey, w, opp, moment_matrix, moment_norm, equilibrium, moment_names
 
   integer, parameter :: q = 9 !! number of discrete velocities
-  !> lattice velocities e_i = (ex(i), ey(i)), i = 0..8, in the order of SPEC §1
+  !> lattice velocities e_i = (ex(i), ey(i)), i = 0..8, in the order of docs/model.md §1
   integer, parameter :: ex(0:8) = [0, 1, 0, -1, 0, 1, -1, -1, 1]
   integer, parameter :: ey(0:8) = [0, 0, 1, 0, -1, 1, 1, -1, -1]
   !> weights w_i

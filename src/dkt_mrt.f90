@@ -1,4 +1,4 @@
-!> The collision operator and the fused pull-stream + collide sweep (SPEC E1–E4).
+!> The collision operator and the fused pull-stream + collide sweep (docs/model.md E1–E4).
 !>
 !> Arrays hold post-collision populations f*(x, t). One sweep pulls f*(x - e_i, t) into each
 !> node (streaming), collides there and stores f*(x, t + 1) in the other lattice. The MRT
@@ -11,7 +11,7 @@ module dkt_mrt
   private
   public :: collision_t, collision_init, stream_collide, collision_describe, e3_heat_flux_rate
 
-  !> Relaxation rates (SPEC E3) and the optional body force, in lattice units.
+  !> Relaxation rates (docs/model.md E3) and the optional body force, in lattice units.
   type, public :: collision_t
     logical :: bgk = .false.        !! E4: single rate 1/tau, equilibrium in velocity space
     real(wp) :: s_nu = 1.0_wp       !! viscous rate 1/tau (p_xx, p_xy)

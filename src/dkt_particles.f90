@@ -1,14 +1,15 @@
-!> Resolved circular particles (SPEC §3): boundary links with the exact circle intersection,
-!> curved bounce-back (E6: halfway, Yu, BFL), momentum exchange (E7, and the Galilean-invariant
-!> variant), Newton–Euler (E8) with gravity and buoyancy (E9); the short-range forces
-!> (E10–E11) come from dkt_collisions.
+!> Resolved circular particles (docs/model.md §3): boundary links with the exact circle
+!> intersection, curved bounce-back (E6: halfway, Yu, BFL), momentum exchange (E7, and the
+!> Galilean-invariant variant), Newton–Euler (E8) with gravity and buoyancy (E9); the short-range
+!> forces (E10–E11) come from dkt_collisions.
 !>
 !> Lattice units throughout: node (i, j) of global row j sits at (i - 1/2, j - 1/2), the side
 !> walls at x = 0 and nx. A particle is owned by the rank whose rows hold its centre; every
 !> rank keeps a ghost copy of every particle and computes the links in its own rows. The force
 !> is summed link by link within a row, the row sums go to the owner, which adds them in
 !> global row order and integrates the motion, and the new state goes back to every rank: the
-!> trajectory has the same bits whatever the number of ranks (DESIGN "Particles across slabs").
+!> trajectory has the same bits whatever the number of ranks (docs/design.md, "Particles across
+!> slabs").
 !>
 !> Interior nodes are not fluid: after each sweep they hold the equilibrium at the local
 !> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the

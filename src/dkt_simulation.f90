@@ -1,5 +1,5 @@
 !> A flow simulation on MPI slabs: set-up from the configuration, the time loop, output.
-!> The time loop (simulation_run) reads like SPEC §1–2: exchange, boundary ghosts, fused
+!> The time loop (simulation_run) reads like docs/model.md §1–2: exchange, boundary ghosts, fused
 !> stream–collide, open ends, guards, output.
 module dkt_simulation
   use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size, &
@@ -137,8 +137,8 @@ contains
     sim%stopped_early = ''
   end subroutine simulation_setup
 
-  !> The particles of the scene in lattice units (SPEC §3–4), their first boundary links and
-  !! the fluid inside them set to their velocity.
+  !> The particles of the scene in lattice units (docs/model.md §3–4), their first boundary links
+  !! and the fluid inside them set to their velocity.
   subroutine setup_particles(sim)
     type(simulation_t), intent(inout) :: sim
     integer :: n, k
@@ -176,7 +176,7 @@ contains
                           c%substeps)
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
-    ! SPEC §4: a stiff contact law is sub-stepped, not softened, and the log says so
+    ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so
     if (particles_stable_substeps(sim%parts) > sim%parts%substeps) then
       write (line, '(a,i0,a,i0,a)') 'collision stiffness: the explicit particle update needs ', &
         particles_stable_substeps(sim%parts), ' sub-steps per fluid step to stay stable; '// &
@@ -748,7 +748,8 @@ contains
   !> One step with particles: the halo is completed before the sweep because a boundary link
   !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
   !! are set, the lattice swept, forces summed (E7), the particles moved (E8–E11) and the
-  !! window moved after them (SPEC §5), before the boundary links are found for the next step.
+  !! window moved after them (docs/model.md §5), before the boundary links are found for the
+  !! next step.
   subroutine particle_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
@@ -769,7 +770,7 @@ contains
     if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
 
-  !> SPEC §5: move the window (the new populations in f_next) with the lowest particle; a
+  !> docs/model.md §5: move the window (the new populations in f_next) with the lowest particle; a
   !! particle near the upper end (the pair has separated by more than the window holds) ends
   !! the run after this step.
   subroutine follow_particles(sim, n)
@@ -789,7 +790,7 @@ contains
     end if
   end subroutine follow_particles
 
-  !> The gap of particles 1 and 2 after step n, for the kissing episodes (SPEC §6); every
+  !> The gap of particles 1 and 2 after step n, for the kissing episodes (docs/model.md §6); every
   !! step, so that no episode falls between two samples of the series.
   subroutine pair_sample(sim, n)
     type(simulation_t), intent(inout) :: sim
@@ -831,7 +832,7 @@ contains
     if (sim%pair_on) call write_pair(sim, n, v)
   end subroutine write_particles
 
-  !> One sample of /diagnostics (SPEC §6) and of the CSV file, from the particle sample `v`
+  !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
   !! (particle, quantity) in physical units as written to /particles.
   subroutine write_pair(sim, n, v)
     type(simulation_t), intent(inout) :: sim

@@ -1,4 +1,4 @@
-!> The moving window of an infinite channel (SPEC §5): the lattice follows the lowest free
+!> The moving window of an infinite channel (docs/model.md §5): the lattice follows the lowest free
 !> particle down. Each time that particle has moved down by one lattice spacing, the top row
 !> of the lattice is dropped, every row moves up by one, and a fresh row of fluid at rest
 !> (equilibrium) enters at the bottom; the particles move up by one spacing in lattice

@@ -1,4 +1,4 @@
-"""Bad input (DESIGN "Input", "Errors and guards"; input/README.md "Errors").
+"""Bad input (docs/design.md, "Input", "Errors and guards"; input/README.md "Errors").
 
 Each invalid input is run on 2 ranks with a 10 s limit and must give: a non-zero exit, no hang,
 exactly one message from rank 0 that names the file (and line, or the --set option), the group,
@@ -383,8 +383,8 @@ def test_missing_namelist_file(tmp_path: Path) -> None:
     assert str(missing) in msg and "cannot open" in msg, msg
 
 
-# ny = height/dx rows; a slab needs MIN_SLAB_ROWS = 2 rows (DESIGN "Data layout": slabs with one
-# ghost row each side), so at most ny // 2 ranks can work.
+# ny = height/dx rows; a slab needs MIN_SLAB_ROWS = 2 rows (docs/design.md, "Data layout": slabs
+# with one ghost row each side), so at most ny // 2 ranks can work.
 @pytest.mark.parametrize(
     ("height", "ranks"),
     [(0.3, 4), (0.15, 2)],
@@ -507,8 +507,8 @@ def test_check_prints_the_derived_lattice_and_writes_nothing(
 ) -> None:
     """--check on input/inlet_channel.nml: exit 0, the printed dx, dt, tau, nine rates, lattice
     viscosity, Mach and Reynolds numbers, cells, steps, memory per rank and models agree with
-    SPEC E3/E4 computed here from the scene, and nothing is written (no output directory, no
-    runs/ in the working directory). Catches wrong unit conversions (dt, Mach), the wrong E3
+    docs/model.md E3/E4 computed here from the scene, and nothing is written (no output directory,
+    no runs/ in the working directory). Catches wrong unit conversions (dt, Mach), the wrong E3
     heat-flux rate, BGK not using 1/tau everywhere, and --check that writes or time-steps."""
     width, height, mu, rho, dx, tau, u_in, t_end = 1.0, 8.0, 0.05, 1.0, 0.05, 0.6, 0.5, 40.0
     nu = mu / rho

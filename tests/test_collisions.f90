@@ -1,4 +1,4 @@
-!> Unit tests of the Wan–Turek repulsion (SPEC E10–E11):
+!> Unit tests of the Wan–Turek repulsion (docs/model.md E10–E11):
 !>  - no force beyond R_i + R_j + xi; equal and opposite forces along the line of centres;
 !>  - inside the range the force is (X_i - X_j)(R_i + R_j + xi - d)^2/eps_p;
 !>  - overlapping disks: (X_i - X_j)(R_i + R_j - d)/eps'_p;

@@ -1,8 +1,8 @@
 !> Unit tests of module dkt_config: namelist text and --set overrides in, configuration or a
 !> clear error out. No files and no MPI: every namelist is a string given to config_load.
 !>
-!> Expected values come from the input contract (notes of the configuration type, SPEC E3/E4)
-!> and from the texts the tests write, never from the program's own output.
+!> Expected values come from the input contract (notes of the configuration type, docs/model.md
+!> E3/E4) and from the texts the tests write, never from the program's own output.
 program test_config
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
@@ -322,7 +322,7 @@ contains
     call check('derive_lattice accepts a valid config', len(err) == 0)
     call check('no particles: particles_on false, cells_per_diameter 0', &
                (.not. lp%particles_on) .and. same(lp%cells_per_diameter, 0.0_wp))
-    ! SPEC E3 by hand: nu_lb = (tau - 1/2)/3, dt = nu_lb dx^2 / (mu/rho).
+    ! docs/model.md E3 by hand: nu_lb = (tau - 1/2)/3, dt = nu_lb dx^2 / (mu/rho).
     nu_lb = (0.65_wp - 0.5_wp)/3.0_wp
     dt = nu_lb*0.004_wp**2/(0.01_wp/1.0_wp)
     s_nu = 1.0_wp/0.65_wp
@@ -565,11 +565,12 @@ contains
 
   subroutine test_particle_scenes_accept()
     type(config_t) :: cfg
-    ! SPEC 7, case0_box: 2 x 8 cm, open ends, two equal disks D = 0.2 at (1, 7.2) and (1, 6.8).
+    ! docs/model.md §7, case0_box: 2 x 8 cm, open ends, two equal disks D = 0.2 at (1, 7.2)
+    ! and (1, 6.8).
     call load_ok('the case0_box scene', '&domain width = 2, height = 8, lower = ''velocity'','// &
                  ' upper = ''outflow'' / &lbm dx = 0.008 / &particles count = 2,'// &
                  ' x = 1, 1, y = 7.2, 6.8 /', cfg)
-    ! SPEC 7, single: box 2 x 6 cm, D = 0.25, rho_p = 1.25, released at (1, 4).
+    ! docs/model.md §7, single: box 2 x 6 cm, D = 0.25, rho_p = 1.25, released at (1, 4).
     call load_ok('the single scene', '&domain height = 6 / &fluid viscosity = 0.1 /'// &
                  ' &particles count = 1, diameter = 0.25, density = 1.25, x = 1, y = 4 /', cfg)
     ! Centres exactly one contact distance apart: 4.0 - 3.85 = 0.15 = (0.2 + 0.1)/2, which in

@@ -1,4 +1,5 @@
-"""The same scene on 1, 2 and 3 ranks writes bitwise-identical fields (DESIGN "Data layout").
+"""The same scene on 1, 2 and 3 ranks writes bitwise-identical fields (docs/design.md,
+"Data layout").
 
 Each case exercises a different set of boundary rules across the slab faces: open ends (E5)
 with side walls, periodic ends with a body force, periodic sides with wall ends (the corner

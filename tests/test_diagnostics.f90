@@ -1,4 +1,4 @@
-!> Unit tests of the pair diagnostics of SPEC §6 (module dkt_diagnostics):
+!> Unit tests of the pair diagnostics of docs/model.md §6 (module dkt_diagnostics):
 !>  - kissing episodes from synthetic D_r(t) series with known answers: none, one, two, a gap
 !>    hovering between the enter and release thresholds (one episode, not many), an episode
 !>    still open at the end, the thresholds themselves (enter: D_r <= enter starts; release:

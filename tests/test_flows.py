@@ -1,4 +1,5 @@
-"""Analytic flows through the whole program (SPEC E1–E5): what each test proves is its name.
+"""Analytic flows through the whole program (docs/model.md E1–E5): what each test proves is
+its name.
 
 Every run is compared with a closed-form solution computed here from the inputs, never with an
 earlier output of the program.

@@ -1,13 +1,13 @@
-"""Run-time guards (DESIGN "Errors and guards"): every run.guard_every steps a non-finite value
-or a Mach number above run.mach_limit stops all ranks, with a message that says what, where,
+"""Run-time guards (docs/design.md, "Errors and guards"): every run.guard_every steps a non-finite
+value or a Mach number above run.mach_limit stops all ranks, with a message that says what, where,
 when and what to change, printed by the rank that saw it (at most once per rank), and a
 non-zero exit; no rank is left waiting.
 
 The scene is input/inlet_channel.nml (20 x 160 cells on 2 ranks: rows 1-80 on rank 0, 81-160 on
 rank 1) started at rest with the inlet switched on at once (inlet.ramp_time = 0). Its velocity
-end imposes u_b = U 4 xi (1 - xi) on the end row at every step (SPEC E5: the end node takes the
-prescribed velocity), so from step 1 the end row holds Mach U_x dt/dx / c_s, computed here, while
-every node more than n rows away is still at rest at step n (a population moves one node per
+end imposes u_b = U 4 xi (1 - xi) on the end row at every step (docs/model.md E5: the end node takes
+the prescribed velocity), so from step 1 the end row holds Mach U_x dt/dx / c_s, computed here,
+while every node more than n rows away is still at rest at step n (a population moves one node per
 step). The expected step, row, position and value of each message follow from that.
 """
 
@@ -27,7 +27,7 @@ SCENE = INPUT / "inlet_channel.nml"
 # input/inlet_channel.nml
 WIDTH, HEIGHT, DX, TAU, NU, U_IN = 1.0, 8.0, 0.05, 0.6, 0.05, 0.5
 NX, NY = round(WIDTH / DX), round(HEIGHT / DX)
-DT = (TAU - 0.5) / 3.0 * DX**2 / NU  # SPEC E3
+DT = (TAU - 0.5) / 3.0 * DX**2 / NU  # docs/model.md E3
 CS = math.sqrt(1.0 / 3.0)
 
 NUM = r"([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)"

@@ -1,4 +1,4 @@
-!> Unit tests of the lattice and the collision kernel (SPEC E1–E4):
+!> Unit tests of the lattice and the collision kernel (docs/model.md E1–E4):
 !>  - the E1 moment matrix times M^T D^-1 is the identity (the written-out inverse is right);
 !>  - the moments of f^eq are the E2 equilibria;
 !>  - the fused sweep equals pull-streaming plus the 9x9 matrix form of E1 with E3 rates,

@@ -1,4 +1,5 @@
-"""The output contract (DESIGN "Output") on a real run of input/inlet_channel.nml on 2 ranks.
+"""The output contract (docs/design.md, "Output") on a real run of input/inlet_channel.nml
+on 2 ranks.
 
 The run is shortened (run.steps = 250, output.field_interval = 0.1 s = 60 steps) and its fluid
 changed to density 1.2 g/cm^3, viscosity 0.06 g/(cm s) (the same nu = 0.05 cm^2/s, so the same
@@ -7,8 +8,8 @@ over 0.15 s (90 steps), starts a sound wave down the channel (c_s = dx/dt/sqrt(3
 whose density jump is about the mean inlet Mach number, 0.4 %, plus the viscous pressure drop:
 well inside the 1 % of a nearly incompressible run (the scene's 0.5 cm/s would jump by 2 %).
 
-Every expected value is derived here from the scene and SPEC E3/E5: the lattice (dx, dt, tau,
-rates, nx, ny), the field steps and times, the equation of state, the vorticity of the stored
+Every expected value is derived here from the scene and docs/model.md E3/E5: the lattice (dx, dt,
+tau, rates, nx, ny), the field steps and times, the equation of state, the vorticity of the stored
 velocity, the imposed inlet profile.
 """
 
@@ -41,7 +42,7 @@ SETS = [
     f"inlet.velocity={U_IN}",
 ]
 NU_LB = (TAU - 0.5) / 3.0
-DT = NU_LB * DX**2 / (MU / RHO_F)  # SPEC E3, diffusive scaling
+DT = NU_LB * DX**2 / (MU / RHO_F)  # docs/model.md E3, diffusive scaling
 NX, NY = round(WIDTH / DX), round(HEIGHT / DX)
 CS2 = 1.0 / 3.0
 FIELDS = {"rho", "ux", "uy", "vorticity", "pressure"}
@@ -106,8 +107,8 @@ def test_every_snapshot_has_five_fields_of_shape_ny_nx_and_its_time(h5) -> None:
 def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
     """/run holds the full namelist with the --set values, version and git revision (the same as
     --version and the project version in CMakeLists.txt), ranks = 2, compiler and flags, and the
-    lattice parameters of SPEC E3. Catches a namelist of the file instead of the run, a missing
-    attribute, wrong ranks, a dt or rate that is not the one the run used."""
+    lattice parameters of docs/model.md E3. Catches a namelist of the file instead of the run, a
+    missing attribute, wrong ranks, a dt or rate that is not the one the run used."""
     run = h5["run"]
     for key in ("namelist", "version", "git_revision", "compiler", "compiler_flags", "ranks"):
         assert key in run.attrs, key
@@ -143,7 +144,7 @@ def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
         "tau": TAU,
         "nu_lb": NU_LB,
         "s_nu": s_nu,
-        "s_q": 8.0 * (2.0 - s_nu) / (8.0 - s_nu),  # SPEC E3
+        "s_q": 8.0 * (2.0 - s_nu) / (8.0 - s_nu),  # docs/model.md E3
         "nx": NX,
         "ny": NY,
         "steps": STEPS,
@@ -184,9 +185,9 @@ def test_vorticity_is_the_curl_of_the_stored_velocity(h5) -> None:
 
 
 def test_inlet_row_carries_the_parabolic_profile(h5) -> None:
-    """SPEC E5: the velocity end row takes u = (0, r U 4 xi (1 - xi)), xi = (i - 1/2)/nx, with
-    the ramp factor 0 < r < 1 during inlet.ramp_time and r = 1 after it, to round-off; at step 0
-    the fluid is at rest. Catches a profile on the wrong nodes (walls instead of cell centres),
+    """docs/model.md E5: the velocity end row takes u = (0, r U 4 xi (1 - xi)), xi = (i - 1/2)/nx,
+    with the ramp factor 0 < r < 1 during inlet.ramp_time and r = 1 after it, to round-off; at step
+    0 the fluid is at rest. Catches a profile on the wrong nodes (walls instead of cell centres),
     a ramp that never finishes or overshoots, velocities in lattice units."""
     xi = (np.arange(NX) + 0.5) / NX
     profile = U_IN * 4.0 * xi * (1.0 - xi)

@@ -1,5 +1,6 @@
-"""Resolved particles through the whole program (SPEC §3–4, §8); each test's name says what it
-proves. Reference values are the published ones of SPEC §8, not earlier outputs of this code."""
+"""Resolved particles through the whole program (docs/model.md §3–4, §8); each test's name says what
+it proves. Reference values are the published ones of docs/model.md §8, not earlier outputs of this
+code."""
 
 from __future__ import annotations
 
@@ -38,8 +39,8 @@ def test_fixed_cylinder_drag_and_lift_match_schafer_turek_2d1(tmp_path: Path) ->
     assert abs(cl - 0.0106) < 0.10 * 0.0106, f"C_L = {cl:.5f}"
 
 
-# the digitised curves live in shared/refdata beside the repository (DKTLBM_REFDATA overrides)
-REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT.parent / "shared" / "refdata"))
+# the digitised curves ship with the tests (tests/refdata/README.md); DKTLBM_REFDATA overrides
+REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT / "tests" / "refdata"))
 
 
 def koblitz(name: str) -> np.ndarray:
@@ -61,7 +62,7 @@ def single_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, np.ndarray
 def test_single_disk_reaches_the_published_maximum_reynolds_number(
     single_run: dict[str, np.ndarray],
 ) -> None:
-    """The settling disk of Glowinski et al. (SPEC §8): Re_max = rho_p D |U|max / mu = 17.3
+    """The settling disk of Glowinski et al. (docs/model.md §8): Re_max = rho_p D |U|max / mu = 17.3
     within 3 %, at 12.5 lattice spacings per diameter (dx = 0.02 cm)."""
     s = single_run
     speed = np.hypot(s["u"][:, 0], s["v"][:, 0])
@@ -76,7 +77,7 @@ def test_single_disk_follows_the_koblitz_trajectory_and_velocity(
     single_run: dict[str, np.ndarray],
 ) -> None:
     """Height and settling velocity against the digitised curves of Koblitz et al. (2017,
-    Fig. 6; refdata/README.md): height within 0.2 D and velocity within 0.02 u_ref (3.5 % of
+    Fig. 6; tests/refdata/README.md): height within 0.2 D and velocity within 0.02 u_ref (3.5 % of
     the peak) at every digitised time from t_ref to 0.7 s, at 12.5 lattice spacings per
     diameter. The curves carry about 1 % of full scale of digitisation noise (0.16 D, 0.006
     u_ref); their first points (t < t_ref) scatter by 0.02 u_ref around zero where the disk,
@@ -195,9 +196,9 @@ def test_particle_series_are_bitwise_identical_on_1_2_and_3_ranks(
 def test_slabs_thinner_than_a_particle_are_refused_with_the_largest_rank_count(
     tmp_path: Path,
 ) -> None:
-    """DESIGN "Particles across slabs": a slab must hold the largest particle plus its stencil
-    (diameter + 4 rows). A 0.6 cm box at dx = 0.02 has 30 rows; the 12.5-spacing disk needs 17
-    per slab, so 2 ranks are refused, the message names 1 as the largest rank count, and
+    """docs/design.md, "Particles across slabs": a slab must hold the largest particle plus its
+    stencil (diameter + 4 rows). A 0.6 cm box at dx = 0.02 has 30 rows; the 12.5-spacing disk needs
+    17 per slab, so 2 ranks are refused, the message names 1 as the largest rank count, and
     nothing is written."""
     out = tmp_path / "thin"
     args = [
@@ -238,13 +239,13 @@ def uhlmann_events(t: np.ndarray, x_lead: np.ndarray, x_trail: np.ndarray) -> di
 
 
 def test_dkt_pair_at_tau_near_one_half_matches_uhlmann_events_and_peaks(tmp_path: Path) -> None:
-    """SPEC §8, Uhlmann (2005) DKT at the extreme tau = 0.512 (input/uhlmann.nml: 20 spacings
-    per diameter, particle Reynolds numbers up to ~500, s_q = 1.2, Galilean-invariant momentum
-    exchange, contact range 2 spacings) runs through 0.3 s without tripping the guards, and
+    """docs/model.md §8, Uhlmann (2005) DKT at the extreme tau = 0.512 (input/uhlmann.nml: 20
+    spacings per diameter, particle Reynolds numbers up to ~500, s_q = 1.2, Galilean-invariant
+    momentum exchange, contact range 2 spacings) runs through 0.3 s without tripping the guards, and
     against the digitised curves of Uhlmann's Fig. 6: the kissing and passing times (events
     defined in uhlmann_events, applied alike to both) within 0.02 s, and each disk's peak
-    settling speed within 10 % (the spread SPEC §8 gives between published methods). With the
-    E3 rate (0.06 here) the start-up warns that such runs were measured unstable."""
+    settling speed within 10 % (the spread docs/model.md §8 gives between published methods). With
+    the E3 rate (0.06 here) the start-up warns that such runs were measured unstable."""
     out = tmp_path / "uhl"
     proc = run("uhlmann.nml", 2, ["run.t_end=0.3", "output.field_interval=0"], out, timeout=900)
     assert "warning" not in proc.stderr
@@ -278,9 +279,9 @@ def test_dkt_pair_at_tau_near_one_half_matches_uhlmann_events_and_peaks(tmp_path
 
 
 def test_a_stiff_contact_law_is_sub_stepped_and_said_so(tmp_path: Path) -> None:
-    """SPEC §4: with a contact law 10^4 times stiffer than the paper's, the explicit particle
-    update would be unstable at one step per fluid step (omega dt ~ 46); the run sub-steps it,
-    says so in the log, and the disk still lands on the fixed disk below without overlapping
+    """docs/model.md §4: with a contact law 10^4 times stiffer than the paper's, the explicit
+    particle update would be unstable at one step per fluid step (omega dt ~ 46); the run sub-steps
+    it, says so in the log, and the disk still lands on the fixed disk below without overlapping
     it by 0.1 lattice spacing."""
     out = tmp_path / "stiff"
     sets = [

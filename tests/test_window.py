@@ -1,5 +1,5 @@
-"""The moving window of the infinite channel (SPEC §5) and the pair diagnostics of a window run
-(SPEC §6), through the whole program; each test's name says what it proves.
+"""The moving window of the infinite channel (docs/model.md §5) and the pair diagnostics of a window
+run (docs/model.md §6), through the whole program; each test's name says what it proves.
 
 The window follows the lowest free particle: when that particle is more than one lattice
 spacing below `below` D_1 above the lower end, the top row is dropped and a row of fluid at rest
@@ -263,8 +263,8 @@ def test_a_window_run_of_the_pair_is_bitwise_identical_on_1_2_and_3_ranks(
 def test_the_window_offset_moves_in_whole_rows_and_keeps_the_lowest_disk_at_below(
     case0_runs: dict[int, Path],
 ) -> None:
-    """SPEC §5 bookkeeping on the 1-rank run: the offset starts `below` D_1 under the lowest
-    centre, never rises, moves in whole lattice spacings; the lowest centre stays between
+    """docs/model.md §5 bookkeeping on the 1-rank run: the offset starts `below` D_1 under the
+    lowest centre, never rises, moves in whole lattice spacings; the lowest centre stays between
     below D_1 - dx and below D_1 above the window's lower end; absolute positions move with
     the velocity (no jump of a spacing at a shift); the window is (below + above) D_1 tall;
     each field group's window_offset is the series value at its time, and the disks drawn in

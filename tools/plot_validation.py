@@ -4,9 +4,9 @@
     python3 tools/plot_validation.py UHLMANN.h5 CASE0_BOX.h5 [-o DIR]
 
 UHLMANN.h5: a run of input/uhlmann.nml (to 0.3 s); its settling speeds and positions along
-gravity against Uhlmann (2005), Fig. 6 (../shared/refdata/uhlmann2005_dkt, or $DKTLBM_REFDATA).
+gravity against Uhlmann (2005), Fig. 6 (tests/refdata/uhlmann2005_dkt, or $DKTLBM_REFDATA).
 CASE0_BOX.h5: a run of input/case0_box.nml; its surface gap against time, with the published
-kissing and tumbling times of SPEC §8 marked. Writes DIR/uhlmann_validation.png and
+kissing and tumbling times of docs/model.md §8 marked. Writes DIR/uhlmann_validation.png and
 DIR/case0_box_validation.png (DIR default docs/img).
 """
 
@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT.parent / "shared" / "refdata"))
+REFDATA = Path(os.environ.get("DKTLBM_REFDATA", ROOT / "tests" / "refdata"))
 
 
 def series(path: Path) -> dict[str, np.ndarray]:

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The speed/accuracy trade of the curved bounce-back (SPEC E6), measured: Schafer-Turek 2D-1
-(input/cylinder.nml) at several resolutions for each scheme, with the drag error against
+"""The speed/accuracy trade of the curved bounce-back (docs/model.md E6), measured: Schafer-Turek
+2D-1 (input/cylinder.nml) at several resolutions for each scheme, with the drag error against
 C_D = 5.5795, the observed convergence order between successive resolutions and the wall time.
 
 Diffusive scaling: tau stays 0.55, so dt ~ dx^2 and the Mach number falls with dx. The width

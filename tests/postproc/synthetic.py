@@ -1,5 +1,5 @@
 """Synthetic dktlbm run files for the post-processing tests, written with h5py after the output
-contract (DESIGN "Output", the /diagnostics layout of the pair scenes).
+contract (docs/design.md, "Output", the /diagnostics layout of the pair scenes).
 
 The surface gap D_r(t) of the pair is a piecewise-linear curve through chosen knots, so the
 times at which it crosses a threshold are known exactly (`crossing`), independently of the
@@ -19,7 +19,7 @@ DT = 0.001  # s, time step written to /run (= the sampling interval)
 T_END = 3.0
 T = np.linspace(0.0, T_END, 3001)  # s, one sample per step
 D1 = 0.2  # cm
-# the default thresholds for DX and D1 (SPEC §6): max(2 dx, 0.05 D_1), max(4 dx, 0.25 D_1)
+# the default thresholds for DX and D1 (docs/model.md §6): max(2 dx, 0.05 D_1), max(4 dx, 0.25 D_1)
 ENTER = max(2 * DX, 0.05 * D1)  # 0.02 cm
 RELEASE = max(4 * DX, 0.25 * D1)  # 0.05 cm
 WIDTH = 2.0  # cm

@@ -435,8 +435,8 @@ def test_real_run_without_diagnostics(tmp_path: Path) -> None:
 def test_real_pair_run_diagnostics_agree_with_particles(tmp_path: Path) -> None:
     """A small real run of input/case0_box.nml on 2 ranks (8 spacings per diameter, 0.3 s):
     every script runs on it, and the program's /diagnostics agree with what the reader
-    computes from /particles by SPEC §6 and E12: D_x, D_y, D_r, Re_a and C_d of each sample,
-    the thresholds, gamma, D_h/D_1, the pattern and its episodes."""
+    computes from /particles by docs/model.md §6 and E12: D_x, D_y, D_r, Re_a and C_d of each
+    sample, the thresholds, gamma, D_h/D_1, the pattern and its episodes."""
     out = tmp_path / "box"
     run("case0_box.nml", 2, ["lbm.cells_per_diameter=8", "run.t_end=0.3",
                              "output.field_interval=0.1"], out, timeout=300)
