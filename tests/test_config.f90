@@ -415,8 +415,9 @@ contains
     call expect_error('error: value not a real number', '&lbm tau = abc /', &
                       [character(len=40) :: 'input/test.nml:1:', '&lbm', 'tau', 'abc', &
                        'not a real number', '0.5 < tau <= 10'])
-    call expect_error('error: repeat count is not a real number', '&lbm tau = 2*0.7 /', &
-                      [character(len=40) :: '&lbm', 'tau', '2*0.7', 'not a real number'])
+    call expect_error('error: a repeat count beyond a scalar', '&lbm tau = 2*0.7 /', &
+                      [character(len=40) :: '&lbm', 'tau', '2*0.7', 'too many values', &
+                       'tau takes 1 value'])
     call expect_error('error: string for a real', '&lbm tau = ''0.7'' /', &
                       [character(len=40) :: '&lbm', 'tau', '''0.7''', 'not a real number'])
     call expect_error('error: value not an integer', '&run steps = 1.5 /', &
@@ -442,8 +443,9 @@ contains
                       [character(len=40) :: '&lbm', 'tau(1)', '0.7', 'not an array'])
     call expect_error('error: too many values', '&fluid body_force = 1, 2, 3 /', &
                       [character(len=40) :: '&fluid', 'body_force', '1, 2, 3', 'too many'])
-    call expect_error('error: no value', '&lbm tau = /', &
-                      [character(len=40) :: '&lbm', 'tau', 'no value'])
+    call expect_error('error: --set without a value', '', &
+                      [character(len=40) :: '--set lbm.tau=', '&lbm', 'tau', 'no value', &
+                       '0.5 < tau <= 10'], [character(len=40) :: 'lbm.tau='])
     call expect_error('error: string too long', '&lbm collision = ''a_very_long_model'' /', &
                       [character(len=40) :: '&lbm', 'collision', 'a_very_long_model', 'too long'])
     call expect_error('error: group not closed', '&lbm tau = 0.7', &
