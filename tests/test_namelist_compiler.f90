@@ -10,12 +10,12 @@
 !> converted to a different double (rounding, exponent without a letter, -0.0, subnormals), a
 !> group given twice applied once.
 !>
-!> Forms left out because gfortran (12) itself departs from the standard there (they are
-!> covered by test_namelist instead): the logicals `true`/`false` and other words starting with
-!> T or F without a leading '.' except a lone T/F; a section with an omitted bound and a stride
-!> (x(::2)); a section whose upper bound lies outside the array while its elements do not
-!> (x(1:17:2)); a comma that starts a line after a value (gfortran reads a null value there);
-!> blanks inside an index. Unquoted strings are an extension of the program and are left out.
+!> Forms left out because gfortran (12) itself departs from the standard there (test_config
+!> covers them): the logicals `true`/`false` and other words starting with T or F without a
+!> leading '.', except a lone T/F; a section with an omitted bound and a stride (x(::2)); a
+!> section whose upper bound lies outside the array while its elements do not (x(2:18:7)); a
+!> comma that starts a line after a value (gfortran reads a null value there). Also left out:
+!> the program's extensions, unquoted strings and blanks in or before an index.
 !>
 !> Usage: test_namelist_compiler DIR (the folder of the .nml files).
 program test_namelist_compiler
