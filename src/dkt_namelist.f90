@@ -203,7 +203,7 @@ contains
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable :: s, lhs, rhs, g, name, loc
     type(token_t), allocatable :: vals(:)
-    integer :: peq, pdot, idx, p, q
+    integer :: peq, pdot, idx, p, q, star
     s = trim(adjustl(spec))
     loc = '--set '//s
     if (len(file) > 0) loc = file//': '//loc
@@ -233,7 +233,14 @@ contains
       if (reg%keys(idx)%kind == KEY_CHOICE .and. reg%keys(idx)%n > 0) then
         call split_words(rhs, vals)
         do q = 1, size(vals)
+          ! r*'text' or r*text: the count is kept apart from the choice; r* (nulls) stays a word
+          star = index(vals(q)%text, '*')
+          if (star == len(vals(q)%text)) cycle
           vals(q)%kind = TOK_STRING
+          if (star > 1 .and. scan(vals(q)%text(:max(star - 1, 1)), '''"') == 0) then
+            vals(q)%rep = vals(q)%text(:star - 1)
+            vals(q)%text = vals(q)%text(star + 1:)
+          end if
           vals(q)%text = unquoted(vals(q)%text)
         end do
       else if (reg%keys(idx)%kind == KEY_STRING .or. reg%keys(idx)%kind == KEY_CHOICE) then

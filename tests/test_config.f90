@@ -933,9 +933,13 @@ contains
   subroutine test_nml_overrides()
     type(config_t) :: cfg
     call load_ok('--set with a repeat count and a section', '', cfg, &
-                 [character(len=40) :: 'particles.diameter=3*0.1', 'particles.x(2:6:2)=4,5,6'])
+                 [character(len=48) :: 'particles.diameter=3*0.1', 'particles.x(2:6:2)=4,5,6', &
+                  'particles.motion=2*fixed,1*,2*''prescribed''', 'particles.motion(3)=free'])
     call check('--set particles.diameter=3*0.1', &
                all(same(cfg%particles%diameter(1:4), [0.1_wp, 0.1_wp, 0.1_wp, 0.2_wp])))
+    call check('--set particles.motion=2*fixed,1*,2*''prescribed'' (then motion(3)=free)', &
+               all(cfg%particles%motion(1:6) == [character(len=16) :: 'fixed', 'fixed', 'free', &
+                                                 'prescribed', 'prescribed', 'free']))
     call check('--set particles.x(2:6:2)=4,5,6', &
                all(same(cfg%particles%x(1:6), [1.0_wp, 4.0_wp, 1.0_wp, 5.0_wp, 1.0_wp, 6.0_wp])))
   end subroutine test_nml_overrides
