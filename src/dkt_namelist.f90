@@ -675,6 +675,7 @@ contains
     character(len=:), allocatable :: s, rep
     character :: c, quote
     integer :: p, q, line, n, first_line, last_end, nl, start
+    integer :: spanned !! first line of the last string that ran over lines; 0 if none
     logical :: has_rep
     allocate (toks(64))
     nt = 0
@@ -684,6 +685,7 @@ contains
     p = 1
     n = len(text)
     last_end = -1 ! where the last token ends, to see whether a string follows r* directly
+    spanned = 0
     do while (p <= n)
       c = text(p:p)
       if (c == achar(10)) then
@@ -736,6 +738,9 @@ contains
             err = at(file, first_line)//': string '//quote//s(:q - 1)//' is not closed; '// &
                   'it ends at the next '//quote//' (a doubled '//quote//quote// &
                   ' stands for one), maybe on a later line'
+            ! A quote left out earlier makes the next string run on and pair the wrong quotes.
+            if (spanned > 0) err = err//'; the string that starts on line '//itoa(spanned)// &
+                                   ' runs over several lines: is its closing quote missing?'
             return
           end if
           if (text(p:p) == achar(10)) then
@@ -768,6 +773,7 @@ contains
           s = joined
         end block line_ends
         call push(TOK_STRING, s, first_line)
+        if (line > first_line) spanned = first_line
         if (has_rep) toks(nt)%rep = rep
       else
         q = p

@@ -1003,6 +1003,10 @@ contains
     call expect_error('error: a string never closed names the line it starts on', &
                       '&output'//NL//'dir = ''abc'//NL//'def /'//NL, &
                       [character(len=60) :: 'input/test.nml:2:', 'abc', 'not closed'])
+    call expect_error('error: a missing quote points to the string that ran on', &
+                      '&output dir = ''abc'//NL//'/'//NL//'&lbm collision = ''bgk'' /', &
+                      [character(len=60) :: 'input/test.nml:3:', 'not closed', &
+                       'starts on line 1 runs over several lines'])
     call expect_error('error: an integer too large', '&run steps = 12345678901 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&run', 'steps', &
                        '12345678901', 'too large for an integer'])
