@@ -1,17 +1,27 @@
-!> Namelist-style input text read into the keys of a registry (module dkt_registry), with
-!> messages that name the file, line, group, key and value of whatever is wrong.
+!> Namelist input text read into the keys of a registry (module dkt_registry), with messages
+!> that name the file, line, group, key and value of whatever is wrong.
 !>
 !> The intrinsic `read(nml=)` is not used because its errors name neither the key nor the value,
-!> and it cannot suggest a spelling or give line numbers.
-!>
-!> Accepted text: groups `&name ... /` (or `&end`), items `key = value` separated by commas,
-!> blanks or newlines, array elements `key(2) = v` and lists `key = v1, v2` (an empty item
-!> between commas leaves that element unchanged), strings in '..' or ".." (doubled quote
-!> inside), logicals .true./.false./T/F/true/false, `!` comments outside strings; names are
-!> case-insensitive. A key given twice keeps the last value. Values are converted and stored
-!> here; ranges and choices are checked later (check_key), after every override.
+!> and it cannot suggest a spelling or give line numbers. The text accepted is that of the
+!> Fortran standard's namelist input (F2008 10.11.3) for the types the registry holds:
+!>   - groups `&name ... /`, also closed by `&end` or `$end`, and `$name` for `&name`; several
+!>     groups a file, a group given twice is read twice; names in any case;
+!>   - items `key = value`, `key(i) = value`, `key(a:b) = v1, v2`, `key(a:b:s) = ...` (bounds
+!>     and stride optional, `key(:)`), separated by commas, blanks or newlines;
+!>   - a list of values fills an array from its first element (or from element i of `key(i)`,
+!>     an extension common to compilers), at most as many values as elements;
+!>   - repeat counts `r*value` and `r*'text'`, null values `r*`, an empty item between commas
+!>     or right after '=' (a null value leaves its element as it was);
+!>   - strings in '..' or ".." with the quote doubled inside, continued over lines;
+!>   - logicals: an optional '.', then T or F, then any letters (.true., .f., T, false);
+!>   - reals in any list-directed form (1, 1.5, .5, 1e3, 1.5d0, 1.0+3); integers [sign]digits;
+!>   - `!` starts a comment outside strings.
+!> Extensions kept for convenience: a choice or string may be unquoted, a blank may stand
+!> between a key and its index. A key given twice keeps the last value. Values are converted
+!> and stored here; ranges and choices are checked later (check_key), after every override.
 module dkt_namelist
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
                           KEY_CHOICE, find_key, has_group, unknown_group_hint, unknown_key_hint, &
@@ -21,12 +31,22 @@ module dkt_namelist
   public :: parse_namelist, apply_override
 
   integer, parameter :: TOK_WORD = 1, TOK_STRING = 2, TOK_EQ = 3, TOK_COMMA = 4, TOK_END = 5, &
-                        TOK_GROUP = 6, TOK_NULL = 7
+                        TOK_GROUP = 6, TOK_NULL = 7, TOK_SUB = 8
   type :: token_t
     integer :: kind = 0
     integer :: line = 0
-    character(len=:), allocatable :: text !! a word as written, a string without its quotes
+    character(len=:), allocatable :: text !! a word as written, a string without its quotes,
+                                          !! a subscript '(a:b)' without blanks
+    character(len=:), allocatable :: rep  !! the 'r' of r*'text' (strings only); unallocated if none
   end type token_t
+
+  !> One value of an item after its repeat count is split off: `rep` copies of `tok`, or `rep`
+  !! null values.
+  type :: value_t
+    integer :: rep = 1
+    logical :: null = .false.
+    type(token_t) :: tok
+  end type value_t
 
   character(len=*), parameter :: BLANKS = ' '//achar(9)//achar(13)//achar(10)
 
@@ -38,14 +58,14 @@ contains
     type(registry_t), intent(inout) :: reg
     character(len=*), intent(in) :: text, file
     character(len=:), allocatable, intent(out) :: err
-    type(token_t), allocatable :: toks(:)
-    type(token_t) :: vals(64)
+    type(token_t), allocatable :: toks(:), vals(:)
     character(len=:), allocatable :: g, name, first, loc
     integer :: nt, it, nv, gline
     logical :: after_value
 
     call tokenize(text, file, toks, nt, err)
     if (len(err) > 0) return
+    allocate (vals(16))
     it = 1
     do while (it <= nt)
       loc = at(file, toks(it)%line)
@@ -88,8 +108,8 @@ contains
         case (TOK_WORD)
           name = toks(it)%text
           it = it + 1
-          if (it <= nt) then ! tolerate a blank before the index: key (2) = v
-            if (toks(it)%kind == TOK_WORD .and. toks(it)%text(1:1) == '(') then
+          if (it <= nt) then ! the index or section, maybe after a blank: key (2) = v
+            if (toks(it)%kind == TOK_SUB) then
               name = name//toks(it)%text
               it = it + 1
             end if
@@ -104,20 +124,17 @@ contains
           end if
           it = it + 1
           ! Values up to the next 'key =', '/', or '&group'. A comma right after '=' or after
-          ! another comma is a null value: that element keeps its value (Fortran namelist rule).
+          ! another comma is a null value: that element keeps its value (Fortran namelist
+          ! rule). A comma before '/' or before the next key ends the list and is no null.
           nv = 0
           after_value = .false.
-          do while (it <= nt .and. nv < size(vals))
+          do while (it <= nt)
             if (toks(it)%kind == TOK_COMMA) then
-              if (.not. after_value) then
-                nv = nv + 1
-                vals(nv) = token_t(TOK_NULL, toks(it)%line, '')
-              end if
+              if (.not. after_value) call add_value(make_token(TOK_NULL, toks(it)%line, ''))
               after_value = .false.
-            else if (toks(it)%kind == TOK_STRING .or. &
+            else if (toks(it)%kind == TOK_STRING .or. toks(it)%kind == TOK_SUB .or. &
                      (toks(it)%kind == TOK_WORD .and. .not. starts_item(toks, it, nt))) then
-              nv = nv + 1
-              vals(nv) = toks(it)
+              call add_value(toks(it))
               after_value = .true.
             else
               exit
@@ -132,9 +149,29 @@ contains
         end select
       end do
     end do
+  contains
+    subroutine add_value(t)
+      type(token_t), intent(in) :: t
+      call append(vals, nv, t)
+    end subroutine add_value
   end subroutine parse_namelist
 
-  !> Is token `it` the name of a new item (followed by '=', maybe after an index word)?
+  !> Append `t` to the first `n` tokens of `list`, growing it as needed.
+  subroutine append(list, n, t)
+    type(token_t), allocatable, intent(inout) :: list(:)
+    integer, intent(inout) :: n
+    type(token_t), intent(in) :: t
+    type(token_t), allocatable :: tmp(:)
+    if (n == size(list)) then
+      allocate (tmp(2*n))
+      tmp(1:n) = list
+      call move_alloc(tmp, list)
+    end if
+    n = n + 1
+    list(n) = t
+  end subroutine append
+
+  !> Is token `it` the name of a new item (followed by '=', maybe after an index)?
   pure logical function starts_item(toks, it, nt)
     type(token_t), intent(in) :: toks(:)
     integer, intent(in) :: it, nt
@@ -143,10 +180,18 @@ contains
     if (toks(it + 1)%kind == TOK_EQ) then
       starts_item = .true.
     else if (it + 2 <= nt) then
-      starts_item = toks(it + 1)%kind == TOK_WORD .and. toks(it + 1)%text(1:1) == '(' &
-                    .and. toks(it + 2)%kind == TOK_EQ
+      starts_item = toks(it + 1)%kind == TOK_SUB .and. toks(it + 2)%kind == TOK_EQ
     end if
   end function starts_item
+
+  function make_token(kind, line, text) result(t)
+    integer, intent(in) :: kind, line
+    character(len=*), intent(in) :: text
+    type(token_t) :: t
+    t%kind = kind
+    t%line = line
+    t%text = text
+  end function make_token
 
   !> Apply one override `group.key=value` or `group.key(i)=value` (the --set option). A string
   !! or choice takes the whole text after '=' (quotes optional); other values, and the values
@@ -158,7 +203,7 @@ contains
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable :: s, lhs, rhs, g, name, loc
     type(token_t), allocatable :: vals(:)
-    integer :: peq, pdot, idx, p, q
+    integer :: peq, pdot, idx, p, q, star
     s = trim(adjustl(spec))
     loc = '--set '//s
     if (len(file) > 0) loc = file//': '//loc
@@ -171,7 +216,7 @@ contains
     lhs = trim(s(:peq - 1))
     rhs = trim(adjustl(s(peq + 1:)))
     g = lower_case(trim(lhs(:pdot - 1)))
-    name = lower_case(trim(adjustl(lhs(pdot + 1:))))
+    name = lower_case(no_blanks(lhs(pdot + 1:)))
     if (.not. has_group(reg, g)) then
       err = loc//': unknown group &'//g//' (key '//name//' = '//rhs//')'// &
             unknown_group_hint(reg, g)
@@ -188,14 +233,27 @@ contains
       if (reg%keys(idx)%kind == KEY_CHOICE .and. reg%keys(idx)%n > 0) then
         call split_words(rhs, vals)
         do q = 1, size(vals)
+          ! r*'text' or r*text: the count is kept apart from the choice; r* (nulls) stays a word
+          star = index(vals(q)%text, '*')
+          if (star == len(vals(q)%text)) cycle
           vals(q)%kind = TOK_STRING
+          if (star > 1 .and. scan(vals(q)%text(:max(star - 1, 1)), '''"') == 0) then
+            vals(q)%rep = vals(q)%text(:star - 1)
+            vals(q)%text = vals(q)%text(star + 1:)
+          end if
           vals(q)%text = unquoted(vals(q)%text)
         end do
       else if (reg%keys(idx)%kind == KEY_STRING .or. reg%keys(idx)%kind == KEY_CHOICE) then
-        rhs = unquoted(rhs) ! not inside token_t(...): gfortran 12 fails on that (ICE)
-        vals = [token_t(TOK_STRING, 0, rhs)]
+        rhs = unquoted(rhs)
+        vals = [make_token(TOK_STRING, 0, rhs)]
       else
         call split_words(rhs, vals)
+      end if
+      ! On the command line an empty value is a slip, not the null value of a file.
+      if (size(vals) == 0) then
+        err = loc//': &'//g//' '//name//' = has no value; allowed: '// &
+              allowed_text(reg%keys(idx))//' ('//reg%keys(idx)%meaning//')'
+        return
       end if
     else
       call split_words(rhs, vals) ! unknown key: assign() reports it with the value
@@ -216,6 +274,17 @@ contains
     end if
   end function unquoted
 
+  !> `text` without its blanks (an index may be written with blanks: x( 1 : 2 )).
+  pure function no_blanks(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    integer :: j
+    s = ''
+    do j = 1, len(text)
+      if (index(BLANKS, text(j:j)) == 0) s = s//text(j:j)
+    end do
+  end function no_blanks
+
   subroutine split_words(text, vals)
     character(len=*), intent(in) :: text
     type(token_t), allocatable, intent(out) :: vals(:)
@@ -232,36 +301,30 @@ contains
         if (index(BLANKS//',', text(q + 1:q + 1)) > 0) exit
         q = q + 1
       end do
-      vals = [vals, token_t(TOK_WORD, 0, text(p:q))]
+      vals = [vals, make_token(TOK_WORD, 0, text(p:q))]
       p = q + 1
     end do
   end subroutine split_words
 
-  !> Store `vals` into key `name` (maybe `name(i)`) of group `g`, converting and checking each.
-  subroutine assign(reg, g, name, vals, loc, err)
+  !> Store `raw` (value tokens, nulls included) into key `name` of group `g`; `name` may carry
+  !! an index or a section, `name(i)`, `name(a:b)`, `name(a:b:s)`. Repeat counts are expanded
+  !! here; each value is converted and checked for its type.
+  subroutine assign(reg, g, name, raw, loc, err)
     type(registry_t), intent(inout), target :: reg
     character(len=*), intent(in) :: g, name, loc
-    type(token_t), intent(in) :: vals(:)
+    type(token_t), intent(in) :: raw(:)
     character(len=:), allocatable, intent(out) :: err
     type(key_t), pointer :: k
-    character(len=:), allocatable :: base, item, elem
-    integer :: p, q, idx, first, j, ios, nvals
-    real(wp) :: x
+    type(value_t), allocatable :: vals(:)
+    character(len=:), allocatable :: base, item, why, takes
+    integer :: p, idx, first, step, slots, j, r, e, filled
+    integer(int64) :: total
+    logical :: stored
     err = ''
     p = index(name, '(')
     base = lower_case(name)
-    first = 1
-    item = '&'//g//' '//name//' = '//join_values(vals)
-    if (p > 0) then
-      base = lower_case(name(:p - 1))
-      q = index(name, ')')
-      ios = 1
-      if (q == len(name) .and. q > p + 1) read (name(p + 1:q - 1), *, iostat=ios) first
-      if (ios /= 0 .or. verify(trim(adjustl(name(p + 1:max(q - 1, p)))), '0123456789+-') /= 0) then
-        err = loc//': '//item//': the index of '''//name//''' is not a whole number'
-        return
-      end if
-    end if
+    if (p > 0) base = lower_case(name(:p - 1))
+    item = '&'//g//' '//name//' = '//join_values(raw)
     idx = find_key(reg, g, base)
     if (idx == 0) then
       err = loc//': &'//g//' has no key '''//base//''' (in '//item//')'// &
@@ -269,98 +332,351 @@ contains
       return
     end if
     k => reg%keys(idx)
-    nvals = count(vals%kind /= TOK_NULL)
-    if (nvals == 0) then
-      err = loc//': '//item//' has no value; allowed: '//allowed_text(k)//' ('//k%meaning//')'
+    call split_repeats(raw, vals, why)
+    if (len(why) > 0) then
+      err = loc//': '//item//': '//why
       return
     end if
-    if (p > 0 .and. k%n == 0) then
-      err = loc//': '//item//': '//base//' is not an array; write '//base//' = value'
-      return
+
+    ! The elements the values go to: first, first + step, ... (slots of them).
+    if (p > 0) then
+      if (k%n == 0) then
+        err = loc//': '//item//': '//base//' is not an array; write '//base//' = value'
+        return
+      end if
+      call select_elements(name(p + 1:len(name) - 1), base, k%n, first, step, slots, why)
+      if (len(why) > 0) then
+        err = loc//': '//item//': '//why
+        return
+      end if
+      if (index(name, ':') == 0) then
+        takes = 'from '//name//' on, '//base//' takes '//itoa(slots)
+      else
+        takes = 'the section '//name//' takes '//itoa(slots)
+      end if
+    else
+      first = 1
+      step = 1
+      slots = max(k%n, 1)
+      takes = base//' takes '//itoa(slots)
     end if
-    if (first < 1 .or. (k%n > 0 .and. first > k%n)) then
-      err = loc//': '//item//': index '//itoa(first)//' is out of range; '//base//' has '// &
-            itoa(k%n)//' elements, '//base//'(1) to '//base//'('//itoa(k%n)//')'
-      return
-    end if
-    if (first + size(vals) - 1 > max(k%n, 1)) then
-      err = loc//': '//item//': too many values; '//base//' takes '//itoa(max(k%n, 1))// &
-            trim(merge(' value ', ' values', max(k%n, 1) == 1))
-      return
-    end if
+    total = 0
     do j = 1, size(vals)
-      if (vals(j)%kind == TOK_NULL) cycle
-      elem = base
-      if (k%n > 0) elem = base//'('//itoa(first + j - 1)//')'
-      item = '&'//g//' '//elem//' = '//display(vals(j))
-      select case (k%kind)
-      case (KEY_REAL)
-        if (.not. is_real_word(vals(j))) then
-          err = loc//': '//item//' is not a real number'
-        else
-          read (vals(j)%text, *, iostat=ios) x
-          if (ios /= 0) then
-            err = loc//': '//item//' is not a real number'
-          else if (.not. ieee_is_finite(x)) then
-            err = loc//': '//item//' is not a finite real number'
-          else if (k%n > 0) then
-            k%ra(first + j - 1) = x
-          else
-            k%r = x
+      total = total + vals(j)%rep
+    end do
+    if (total > slots) then
+      err = loc//': '//item//': too many values ('//itoa64(total)
+      if (total > size(vals)) err = err//', counting repeats'
+      err = err//'); '//takes//trim(merge(' value ', ' values', slots == 1))
+      return
+    end if
+
+    filled = 0
+    stored = .false.
+    do j = 1, size(vals)
+      do r = 1, vals(j)%rep
+        e = first + filled*step
+        filled = filled + 1
+        if (vals(j)%null) cycle
+        if (k%n == 0) e = 0
+        call store(k, e, vals(j)%tok, '&'//g//' '//element(base, e)//' = '// &
+                   display(vals(j)%tok), why)
+        if (len(why) > 0) then
+          err = loc//': '//why//'; allowed: '//allowed_text(k)//' ('//k%meaning//')'
+          return
+        end if
+        stored = .true.
+      end do
+    end do
+    if (stored) k%origin = loc
+  end subroutine assign
+
+  !> `base` for a scalar (e = 0), `base(e)` for element e of an array.
+  function element(base, e) result(s)
+    character(len=*), intent(in) :: base
+    integer, intent(in) :: e
+    character(len=:), allocatable :: s
+    s = base
+    if (e > 0) s = base//'('//itoa(e)//')'
+  end function element
+
+  !> Split the repeat count off each value: r*c is r copies of c, r* is r null values; a null
+  !! token is one null value. `why` says what is wrong with a repeat count ('' if nothing).
+  subroutine split_repeats(raw, vals, why)
+    type(token_t), intent(in) :: raw(:)
+    type(value_t), allocatable, intent(out) :: vals(:)
+    character(len=:), allocatable, intent(out) :: why
+    character(len=:), allocatable :: count_text
+    integer :: j, star
+    allocate (vals(size(raw)))
+    why = ''
+    do j = 1, size(raw)
+      vals(j)%tok = raw(j)
+      vals(j)%null = raw(j)%kind == TOK_NULL
+      count_text = ''
+      if (raw(j)%kind == TOK_STRING .and. allocated(raw(j)%rep)) then
+        count_text = raw(j)%rep
+        vals(j)%tok%rep = ''
+      else if (raw(j)%kind == TOK_WORD) then
+        star = index(raw(j)%text, '*')
+        ! A word with '*' is a repeat if what precedes the '*' looks like a number at all;
+        ! anything else (x*2) is left to the type check of the value.
+        if (star > 1) then
+          if (verify(raw(j)%text(:star - 1), '+-.0123456789eEdD') == 0 .and. &
+              scan(raw(j)%text(:star - 1), '0123456789') > 0) then
+            count_text = raw(j)%text(:star - 1)
+            vals(j)%tok%text = raw(j)%text(star + 1:)
+            vals(j)%null = len(vals(j)%tok%text) == 0
           end if
         end if
-      case (KEY_INTEGER)
-        ios = 1
-        if (vals(j)%kind == TOK_WORD .and. verify(vals(j)%text, '+-0123456789') == 0) &
-          read (vals(j)%text, *, iostat=ios) k%i
-        if (ios /= 0) err = loc//': '//item//' is not an integer'
-      case (KEY_LOGICAL)
-        select case (lower_case(vals(j)%text))
-        case ('.true.', '.t.', 't', 'true')
-          k%l = .true.
-        case ('.false.', '.f.', 'f', 'false')
-          k%l = .false.
-        case default
-          err = loc//': '//item//' is not a logical'
-        end select
-        if (vals(j)%kind == TOK_STRING) err = loc//': '//item//' is not a logical'
-      case (KEY_STRING, KEY_CHOICE)
-        if (len(vals(j)%text) > text_length(k)) then
-          err = loc//': '//item//' is too long: '//itoa(len(vals(j)%text))// &
-                ' characters, at most '//itoa(text_length(k))
-        else if (k%n > 0) then ! an array of choices
-          k%sa(first + j - 1)%s = lower_case(vals(j)%text)
-        else if (k%kind == KEY_CHOICE) then
-          k%s = lower_case(vals(j)%text) ! membership is checked with the ranges (check_key)
-        else
-          k%s = vals(j)%text
-        end if
-      end select
-      if (len(err) > 0) then
-        err = err//'; allowed: '//allowed_text(k)//' ('//k%meaning//')'
+      end if
+      if (len(count_text) == 0) cycle
+      if (.not. whole_number(count_text, vals(j)%rep)) then
+        why = 'the repeat count '''//count_text//''' of '''//display(raw(j))//''' is not '// &
+              'a whole number of integer size; write r*value with r = 1, 2, ...'
+        return
+      else if (vals(j)%rep < 1) then
+        why = 'the repeat count '//count_text//' of '''//display(raw(j))//''' is not '// &
+              'positive; write r*value with r = 1, 2, ...'
         return
       end if
     end do
-    k%origin = loc
-  end subroutine assign
+  end subroutine split_repeats
 
-  !> A real value must look like a number: list-directed input would also take repeat counts
-  !! (2*1.0), and a word such as 'T' would then fail with a less clear message.
-  pure logical function is_real_word(t)
+  !> The elements an index `sub` ('i', 'a:b' or 'a:b:s', bounds and stride optional) selects
+  !! of an array `base` of n elements: first, first + step, ... (count of them). An index i
+  !! selects elements i..n (a list of values after key(i) fills on from i). `why` says what is
+  !! wrong ('' if nothing).
+  subroutine select_elements(sub, base, n, first, step, count, why)
+    character(len=*), intent(in) :: sub, base
+    integer, intent(in) :: n
+    integer, intent(out) :: first, step, count
+    character(len=:), allocatable, intent(out) :: why
+    character(len=:), allocatable :: des, range_text, part(:)
+    character(len=11), parameter :: WHAT(3) = ['lower bound', 'upper bound', 'stride     ']
+    integer :: c1, c2, v(3), j, last
+    des = base//'('//sub//')'
+    range_text = base//' has '//itoa(n)//' elements, '//base//'(1) to '//base//'('//itoa(n)//')'
+    why = ''
+    first = 1
+    step = 1
+    count = 0
+    if (scan(sub, ',') > 0) then
+      why = base//' has one dimension: write '//base//'(i), '//base//'(a:b) or '//base//'(a:b:s)'
+      return
+    end if
+    c1 = index(sub, ':')
+    if (c1 == 0) then
+      if (.not. whole_number(sub, first)) then
+        why = 'the index of '''//des//''' is not a whole number'
+      else if (first < 1 .or. first > n) then
+        why = 'index '//itoa(first)//' is out of range; '//range_text
+      else
+        count = n - first + 1
+      end if
+      return
+    end if
+    c2 = index(sub(c1 + 1:), ':')
+    if (c2 > 0) c2 = c1 + c2
+    if (c2 > 0) then
+      if (index(sub(c2 + 1:), ':') > 0) then
+        why = ''''//des//''' is not an index: write '//base//'(i), '//base//'(a:b) or '// &
+              base//'(a:b:s)'
+        return
+      end if
+      part = [character(len=len(sub)) :: sub(:c1 - 1), sub(c1 + 1:c2 - 1), sub(c2 + 1:)]
+    else
+      part = [character(len=len(sub)) :: sub(:c1 - 1), sub(c1 + 1:), '']
+    end if
+    v = [1, n, 1] ! the defaults of an omitted bound or stride
+    do j = 1, 3
+      if (len_trim(part(j)) == 0) cycle
+      if (.not. whole_number(trim(part(j)), v(j))) then
+        why = 'the '//trim(WHAT(j))//' '''//trim(part(j))//''' of '''//des// &
+              ''' is not a whole number'
+        return
+      end if
+    end do
+    if (v(3) == 0) then
+      why = 'the stride of '''//des//''' is 0; a section a:b:s needs a stride s other than 0'
+      return
+    end if
+    first = v(1)
+    step = v(3)
+    count = max(0, (v(2) - v(1) + v(3))/v(3))
+    if (count == 0) then
+      why = 'the section '''//des//''' selects no element (from '//itoa(v(1))//' to '// &
+            itoa(v(2))//' in steps of '//itoa(v(3))//')'
+      return
+    end if
+    ! The bounds themselves may lie outside (x(1:7:2) of 6 elements); the elements may not.
+    last = first + (count - 1)*step
+    do j = 1, 2
+      e_check: block
+        integer :: e
+        e = merge(first, last, j == 1)
+        if (e < 1 .or. e > n) then
+          why = 'the section '''//des//''' selects element '//itoa(e)// &
+                ', out of range; '//range_text
+          return
+        end if
+      end block e_check
+    end do
+  end subroutine select_elements
+
+  !> Convert value `t` for key `k` and store it into element e (0: the scalar). `item` names
+  !! it in the message `why` ('' when stored).
+  subroutine store(k, e, t, item, why)
+    type(key_t), intent(inout) :: k
+    integer, intent(in) :: e
     type(token_t), intent(in) :: t
-    is_real_word = t%kind == TOK_WORD .and. verify(t%text, '+-.0123456789eEdD') == 0 .and. &
-                   scan(t%text, '0123456789') > 0
-  end function is_real_word
+    character(len=*), intent(in) :: item
+    character(len=:), allocatable, intent(out) :: why
+    character(len=:), allocatable :: w
+    real(wp) :: x
+    integer :: i, ios
+    why = ''
+    select case (k%kind)
+    case (KEY_REAL)
+      select case (real_form(t))
+      case (1)
+        read (t%text, *, iostat=ios) x
+        if (ios /= 0) then
+          why = item//' is not a real number'
+        else if (.not. ieee_is_finite(x)) then
+          why = item//' is not a finite real number (too large)'
+        else if (e > 0) then
+          k%ra(e) = x
+        else
+          k%r = x
+        end if
+      case (2)
+        why = item//' is not a finite real number'
+      case default
+        why = item//' is not a real number'
+      end select
+    case (KEY_INTEGER)
+      if (t%kind /= TOK_WORD .or. .not. whole_number(t%text, i)) then
+        why = item//' is not an integer'
+        if (t%kind == TOK_WORD .and. verify(t%text, '+-0123456789') == 0 .and. &
+            scan(t%text, '0123456789') > 0) why = item//' is too large for an integer (at '// &
+                                              'most '//itoa(huge(i))//' in size)'
+      else
+        k%i = i
+      end if
+    case (KEY_LOGICAL)
+      ! Fortran's logical input: an optional '.', then T or F, then anything (.true., tru).
+      w = lower_case(t%text)
+      if (len(w) > 0) then
+        if (w(1:1) == '.') w = w(2:)
+      end if
+      if (t%kind /= TOK_WORD .or. len(w) == 0) then
+        why = item//' is not a logical'
+      else if (w(1:1) == 't') then
+        k%l = .true.
+      else if (w(1:1) == 'f') then
+        k%l = .false.
+      else
+        why = item//' is not a logical'
+      end if
+    case (KEY_STRING, KEY_CHOICE)
+      if (len(t%text) > text_length(k)) then
+        why = item//' is too long: '//itoa(len(t%text))//' characters, at most '// &
+              itoa(text_length(k))
+      else if (e > 0) then ! an array of choices
+        k%sa(e)%s = lower_case(t%text)
+      else if (k%kind == KEY_CHOICE) then
+        k%s = lower_case(t%text) ! membership is checked with the ranges (check_key)
+      else
+        k%s = t%text
+      end if
+    end select
+  end subroutine store
 
-  !> Split `text` into tokens; the only lexical errors are an unclosed string and a bare '&'.
+  !> 1 if `t` is a real number as list-directed input writes it ([sign] digits with an optional
+  !! point, then an optional exponent E/D[sign]digits or sign digits), 2 for Inf or NaN, 0
+  !! otherwise. The form is checked before the conversion because list-directed input would
+  !! also take a repeat count or stop at a blank or a slash.
+  integer function real_form(t) result(f)
+    type(token_t), intent(in) :: t
+    character(len=:), allocatable :: s
+    integer :: p, nd
+    f = 0
+    if (t%kind /= TOK_WORD) return
+    s = lower_case(t%text)
+    p = 1
+    if (len(s) == 0) return
+    if (s(1:1) == '+' .or. s(1:1) == '-') p = 2
+    if (s(p:) == 'inf' .or. s(p:) == 'infinity' .or. s(p:) == 'nan' .or. &
+        (index(s(p:), 'nan(') == 1 .and. s(len(s):) == ')')) then
+      f = 2
+      return
+    end if
+    nd = 0
+    call digits_at(nd)
+    if (p <= len(s)) then
+      if (s(p:p) == '.') then
+        p = p + 1
+        call digits_at(nd)
+      end if
+    end if
+    if (nd == 0) return
+    if (p > len(s)) then
+      f = 1
+      return
+    end if
+    if (s(p:p) == 'e' .or. s(p:p) == 'd') then
+      p = p + 1
+      if (p <= len(s)) then
+        if (s(p:p) == '+' .or. s(p:p) == '-') p = p + 1
+      end if
+    else if (s(p:p) == '+' .or. s(p:p) == '-') then
+      p = p + 1
+    else
+      return
+    end if
+    nd = 0
+    call digits_at(nd)
+    if (nd > 0 .and. p > len(s)) f = 1
+  contains
+    subroutine digits_at(n)
+      integer, intent(inout) :: n
+      do while (p <= len(s))
+        if (index('0123456789', s(p:p)) == 0) exit
+        p = p + 1
+        n = n + 1
+      end do
+    end subroutine digits_at
+  end function real_form
+
+  !> Is `text` a whole number ([sign]digits) that fits an integer? Then `i` is its value.
+  logical function whole_number(text, i)
+    character(len=*), intent(in) :: text
+    integer, intent(out) :: i
+    integer :: p, ios
+    i = 0
+    whole_number = .false.
+    p = 1
+    if (len(text) == 0) return
+    if (text(1:1) == '+' .or. text(1:1) == '-') p = 2
+    if (p > len(text)) return
+    if (verify(text(p:), '0123456789') /= 0) return
+    read (text, *, iostat=ios) i
+    whole_number = ios == 0
+  end function whole_number
+
+  !> Split `text` into tokens. Lexical errors: an unclosed string, an index '(' without ')',
+  !! and a bare '&'.
   subroutine tokenize(text, file, toks, nt, err)
     character(len=*), intent(in) :: text, file
     type(token_t), allocatable, intent(out) :: toks(:)
     integer, intent(out) :: nt
     character(len=:), allocatable, intent(out) :: err
-    character(len=:), allocatable :: s
+    character(len=:), allocatable :: s, rep
     character :: c, quote
-    integer :: p, q, line, n
+    integer :: p, q, line, n, first_line, last_end, nl, start
+    integer :: spanned !! first line of the last string that ran over lines; 0 if none
+    logical :: has_rep
     allocate (toks(64))
     nt = 0
     err = ''
@@ -368,6 +684,8 @@ contains
     line = 1
     p = 1
     n = len(text)
+    last_end = -1 ! where the last token ends, to see whether a string follows r* directly
+    spanned = 0
     do while (p <= n)
       c = text(p:p)
       if (c == achar(10)) then
@@ -384,18 +702,54 @@ contains
         call push(TOK_EQ, c)
       else if (c == '/') then
         call push(TOK_END, c)
+      else if (c == '(') then
+        ! An index or section, up to ')' on the same line; blanks inside are dropped.
+        q = index(text(p:), ')')
+        nl = index(text(p:), achar(10))
+        if (q == 0 .or. (nl > 0 .and. nl < q)) then
+          err = at(file, line)//': '''//trim(text(p:p - 1 + merge(nl - 1, n - p + 1, nl > 0)))// &
+                ''' has no closing '')''; an index is written key(i), key(a:b) or key(a:b:s)'
+          return
+        end if
+        start = p
+        p = p + q - 1
+        call push(TOK_SUB, no_blanks(text(start:p)))
       else if (c == '''' .or. c == '"') then
+        ! r*'text': a repeat count written right before the quote belongs to the string.
+        has_rep = .false.
+        if (nt > 0 .and. last_end == p - 1) then
+          if (toks(nt)%kind == TOK_WORD) then
+            q = len(toks(nt)%text)
+            if (toks(nt)%text(q:q) == '*') then
+              has_rep = .true.
+              rep = toks(nt)%text(:q - 1)
+              nt = nt - 1
+            end if
+          end if
+        end if
+        ! A string may go on over lines (the line ends are not part of it, F2008 10.11.3.3).
         quote = c
+        first_line = line
         s = ''
         do
           p = p + 1
           if (p > n) then
-            err = at(file, line)//': string '//quote//s//' is not closed'
+            q = index(s//achar(10), achar(10))
+            err = at(file, first_line)//': string '//quote//s(:q - 1)//' is not closed; '// &
+                  'it ends at the next '//quote//' (a doubled '//quote//quote// &
+                  ' stands for one), maybe on a later line'
+            ! A quote left out earlier makes the next string run on and pair the wrong quotes.
+            if (spanned > 0) err = err//'; the string that starts on line '//itoa(spanned)// &
+                                   ' runs over several lines: is its closing quote missing?'
             return
           end if
           if (text(p:p) == achar(10)) then
-            err = at(file, line)//': string '//quote//s//' is not closed on its line'
-            return
+            line = line + 1
+            if (len(s) > 0) then ! drop the CR of a CR LF line end
+              if (s(len(s):) == achar(13)) s = s(:len(s) - 1)
+            end if
+            s = s//achar(10) ! kept only to cut the message above; removed below
+            cycle
           end if
           if (text(p:p) == quote) then
             if (p < n) then
@@ -409,42 +763,50 @@ contains
           end if
           s = s//text(p:p)
         end do
-        call push(TOK_STRING, s)
+        line_ends: block
+          character(len=:), allocatable :: joined
+          integer :: j
+          joined = ''
+          do j = 1, len(s)
+            if (s(j:j) /= achar(10)) joined = joined//s(j:j)
+          end do
+          s = joined
+        end block line_ends
+        call push(TOK_STRING, s, first_line)
+        if (line > first_line) spanned = first_line
+        if (has_rep) toks(nt)%rep = rep
       else
         q = p
         do while (q < n)
-          if (scan(text(q + 1:q + 1), BLANKS//',=/!''"') > 0) exit
+          if (scan(text(q + 1:q + 1), BLANKS//',=/!''"(') > 0) exit
           q = q + 1
         end do
-        if (c == '&') then
-          if (q == p) then
-            err = at(file, line)//': ''&'' without a group name; a group starts with &name'
+        start = p
+        p = q
+        if (c == '&' .or. c == '$') then
+          if (q == start) then
+            err = at(file, line)//': '''//c//''' without a group name; a group starts with &name'
             return
           end if
-          if (lower_case(text(p + 1:q)) == 'end') then
-            call push(TOK_END, text(p:q))
+          if (lower_case(text(start + 1:q)) == 'end') then
+            call push(TOK_END, text(start:q))
           else
-            call push(TOK_GROUP, lower_case(text(p + 1:q)))
+            call push(TOK_GROUP, lower_case(text(start + 1:q)))
           end if
         else
-          call push(TOK_WORD, text(p:q))
+          call push(TOK_WORD, text(start:q))
         end if
-        p = q
       end if
       p = p + 1
     end do
   contains
-    subroutine push(kind, word)
+    subroutine push(kind, word, at_line)
       integer, intent(in) :: kind
       character(len=*), intent(in) :: word
-      type(token_t), allocatable :: tmp(:)
-      if (nt == size(toks)) then
-        allocate (tmp(2*nt))
-        tmp(1:nt) = toks
-        call move_alloc(tmp, toks)
-      end if
-      nt = nt + 1
-      toks(nt) = token_t(kind, line, word)
+      integer, intent(in), optional :: at_line
+      call append(toks, nt, make_token(kind, line, word))
+      if (present(at_line)) toks(nt)%line = at_line
+      last_end = p ! p is at the last character of the token
     end subroutine push
   end subroutine tokenize
 
@@ -457,11 +819,15 @@ contains
     s = file//':'//itoa(line)
   end function at
 
+  !> A token as it was written: a string quoted again, with its repeat count.
   function display(t) result(s)
     type(token_t), intent(in) :: t
     character(len=:), allocatable :: s
     if (t%kind == TOK_STRING) then
       s = quoted(t%text)
+      if (allocated(t%rep)) then
+        if (len(t%rep) > 0) s = t%rep//'*'//s
+      end if
     else
       s = t%text
     end if
@@ -477,5 +843,13 @@ contains
       s = s//display(vals(j))
     end do
   end function join_values
+
+  function itoa64(i) result(s)
+    integer(int64), intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function itoa64
 
 end module dkt_namelist
