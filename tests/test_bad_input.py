@@ -137,7 +137,7 @@ CASES = {
     "steps-not-an-integer": Case(
         "steps = 5",
         "steps = 1.5",
-        pieces=["{file}:{line}:", "&run", "steps = 1.5", "not an integer", "steps >= 0"],
+        pieces=["{file}:{line}:", "&run", "steps = 1.5", "not an integer", "0 <= steps"],
     ),
     "overwrite-not-a-logical": Case(
         args=["--set", "output.overwrite=maybe"],
