@@ -639,7 +639,6 @@ contains
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable, intent(out) :: warnings
     type(lattice_params_t) :: lp
-    real(wp) :: n_steps
     integer :: j
 
     warnings = ''

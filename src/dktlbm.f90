@@ -71,13 +71,14 @@ contains
     character(len=:), allocatable :: err
     integer :: n
     n = -1
-    err = ''
     if (rank == 0) then
       call read_text_file(path, text, err)
       if (len(err) == 0) n = len(text)
     end if
     call MPI_Bcast(n, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
-    if (n < 0) call fatal_all(err)
+    ! only rank 0 read the file and prints the message; the others stop with it
+    if (n < 0 .and. rank == 0) call fatal_all(err)
+    if (n < 0) call fatal_all('')
     if (rank /= 0) allocate (character(len=n) :: text)
     if (n > 0) call MPI_Bcast(text, n, MPI_CHARACTER, 0, MPI_COMM_WORLD)
   end subroutine read_input
