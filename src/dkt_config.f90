@@ -754,9 +754,9 @@ contains
         err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives '// &
               power(n_log)//' time steps of dt = '//fmt_real(dt)//' s (from '// &
               dx_text()//', &lbm tau = '//val('lbm', 'tau')//' and &fluid viscosity/'// &
-              'density); allowed: at most '//fmt_real(MAX_STEPS)//' steps, i.e. t_end <= '// &
-              fmt_real(round6(MAX_STEPS*dt))//' s; make t_end smaller, or dt larger: raise '// &
-              'lbm.tau, or '//dx_knob(c, larger=.true.)
+              'density); allowed: at most '//itoa(nint(MAX_STEPS))//' steps, i.e. t_end <= '// &
+              fmt_real(round6(MAX_STEPS*dt, down=.true.))//' s; make t_end smaller, or dt '// &
+              'larger: raise lbm.tau, or '//dx_knob(c, larger=.true.)
       end if
     end subroutine check_steps
 
@@ -798,8 +798,9 @@ contains
                 fmt_real(round6(speed*lp%dt/lp%dx/sqrt(cs2)))// &
                 ' on this lattice (dx = '//fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)// &
                 ' s), above &run mach_limit = '//val('run', 'mach_limit')//'; allowed: a '// &
-                'speed up to '//fmt_real(round6(u_max))//' cm/s; lower u('//itoa(k)//') and v('// &
-                itoa(k)//'), or '//dx_knob(c)//' or lower &lbm tau (both shrink dt)'
+                'speed up to '//fmt_real(round6(u_max, down=.true.))//' cm/s; lower u('// &
+                itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
+                ' or lower &lbm tau (both shrink dt)'
           return
         end do
       end associate
@@ -1168,14 +1169,24 @@ contains
       end associate
     end subroutine check_duration
 
-    !> x to six significant digits, for derived values in messages (no round-off tail)
-    pure real(wp) function round6(x)
+    !> x to six significant digits, for derived values in messages (no round-off tail);
+    !! rounded towards zero with `down` (a bound that must still hold)
+    pure real(wp) function round6(x, down)
       real(wp), intent(in) :: x
-      real(wp) :: scale
+      logical, intent(in), optional :: down
+      real(wp) :: unit, q
+      integer :: e
       round6 = x
       if (abs(x) <= 0.0_wp .or. .not. ieee_is_finite(x)) return
-      scale = 10.0_wp**(5 - floor(log10(abs(x))))
-      round6 = anint(x*scale)/scale
+      e = floor(log10(abs(x))) - 5
+      unit = 10.0_wp**abs(e)
+      ! divide or multiply by an exact power of ten, never by its inexact reciprocal
+      q = merge(x/unit, x*unit, e >= 0)
+      q = anint(q)
+      if (present(down)) then
+        if (down) q = aint(merge(x/unit, x*unit, e >= 0))
+      end if
+      round6 = merge(q*unit, q/unit, e >= 0)
     end function round6
 
     !> x rounded up to three decimals (a bound printed without round-off noise that still

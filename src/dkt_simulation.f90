@@ -914,8 +914,14 @@ contains
     do k = 1, sim%parts%n
       what = ''
       associate (p => sim%parts%p(k))
-        if (p%x < 0.0_wp .or. p%x > nx .or. p%y < 0.0_wp .or. p%y > ny) then
-          what = 'its centre left the lattice'
+        if (p%x < 0.0_wp .or. p%x > nx) then
+          what = 'its centre left the channel through a side'
+        else if (p%y < 0.0_wp) then
+          what = 'its centre passed the lower end'//trim(merge(' of the window', '              ', &
+                                                               sim%window_on))
+        else if (p%y > ny) then
+          what = 'its centre passed the upper end'//trim(merge(' of the window', '              ', &
+                                                               sim%window_on))
         else if (p%motion == MOTION_PRESCRIBED) then
           if (walls_x .and. (p%x < p%r .or. p%x > nx - p%r)) what = 'it reached a side wall'
           if (wall_lo .and. p%y < p%r) what = 'it reached the lower end'
