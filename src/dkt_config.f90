@@ -1476,9 +1476,13 @@ contains
       '                         quotes, e.g. --set lbm.tau=0.7 --set output.dir=/tmp/run', &
       '  --restart CHECKPOINT   resume the run from a checkpoint file it wrote (same FILE', &
       '                         and --set options; any number of ranks); the output continues', &
-      '  --check                validate, print the derived lattice parameters and exit', &
+      '  --check                validate, print the derived lattice parameters and exit;', &
+      '                         no lattice is allocated. Exits non-zero for whatever the', &
+      '                         run would refuse (memory, an earlier run''s files in', &
+      '                         output.dir). With --restart the checkpoint is not read', &
       '  --print-defaults       print every key with its default, unit, allowed values and', &
-      '                         meaning, as a namelist file, and exit', &
+      '                         meaning, as a namelist file, and exit; with FILE (and', &
+      '                         --set) the values they give instead of the defaults', &
       '  --help                 print this help and exit', &
       '  --version              print the version and exit', &
       '', &
