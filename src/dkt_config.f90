@@ -5,6 +5,7 @@
 !> `build_registry` adds unit, range and meaning to each component; parsing, range checks,
 !> `--print-defaults` and input/README.md (through tests/test_input_readme.py) all come from it.
 module dkt_config
+  use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, cs2, pi
   use dkt_mrt, only: e3_heat_flux_rate
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
@@ -15,7 +16,8 @@ module dkt_config
   private
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
-  public :: kiss_enter_cells, kiss_thresholds
+  public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
+  public :: dx_knob
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -135,6 +137,7 @@ module dkt_config
     integer :: checkpoint_keep = 2        !! checkpoints kept (older ones are removed)
     real(wp) :: wall_limit = 0.0_wp       !! s of wall time after which the run checkpoints
                                           !! and stops; 0 = no limit
+    real(wp) :: memory_limit = 0.0_wp     !! GiB a node may give the run; 0 = MemAvailable
   end type run_cfg_t
 
   !> &output: where and how often results are written.
@@ -213,6 +216,11 @@ module dkt_config
   real(wp), parameter :: MIN_CELLS_PER_D = 4.0_wp  !! fewer cells per diameter: refused
   real(wp), parameter :: GOOD_CELLS_PER_D = 8.0_wp !! fewer cells per diameter: a warning
   real(wp), parameter :: CONTACT_TOL = 1.0e-12_wp  !! relative round-off of a typed distance
+  !> more time steps than this is surely a unit or typing error (a day at 10^4 steps/s)
+  real(wp), parameter :: MAX_STEPS = 1.0e9_wp
+  !> a time step outside DT_MIN..DT_MAX s comes from a viscosity or density in the wrong units
+  !! (no flow on a cm lattice needs it), and makes the lattice-unit forces under- or overflow
+  real(wp), parameter :: DT_MIN = 1.0e-12_wp, DT_MAX = 1.0e6_wp
 
 contains
 
@@ -349,7 +357,7 @@ contains
     call add_real(reg, 'run', 't_end', c%run%t_end, 's', &
                   'simulated time (ignored when steps > 0)', gt=0.0_wp)
     call add_integer(reg, 'run', 'steps', c%run%steps, '-', &
-                     'number of time steps; 0 = from t_end', ge=0)
+                     'number of time steps; 0 = from t_end', ge=0, le=nint(MAX_STEPS))
     call add_real(reg, 'run', 't_ref', c%run%t_ref, 's', &
                   'time scale of t* = t/t_ref; default sqrt(18 cm / 980 cm/s^2)', gt=0.0_wp)
     call add_integer(reg, 'run', 'progress_every', c%run%progress_every, '-', &
@@ -367,6 +375,9 @@ contains
                      'newest checkpoints kept; older ones are deleted', ge=1)
     call add_real(reg, 'run', 'wall_limit', c%run%wall_limit, 's', 'after this wall-clock '// &
                   'time the run writes a checkpoint and stops (exit 0); 0 = no limit', ge=0.0_wp)
+    call add_real(reg, 'run', 'memory_limit', c%run%memory_limit, 'GiB', 'memory the ranks '// &
+                  'of one node may use together; a run needing more is refused at start; '// &
+                  '0 = MemAvailable of /proc/meminfo', ge=0.0_wp)
 
     call add_string(reg, 'output', 'dir', c%output%dir, &
                     'output directory; empty = runs/<namelist basename>')
@@ -530,6 +541,97 @@ contains
     release = max(c%diagnostics%release_cells, c%diagnostics%release_d1*d1)
   end subroutine kiss_thresholds
 
+  !> How to make dx smaller (or, with `larger`, larger) in this scene: through
+  !! lbm.cells_per_diameter when that sets dx (lbm.dx is then not used), else lbm.dx.
+  function dx_knob(c, larger) result(s)
+    type(config_t), intent(in) :: c
+    logical, intent(in), optional :: larger
+    character(len=:), allocatable :: s
+    logical :: up
+    up = .false.
+    if (present(larger)) up = larger
+    if (c%lbm%cells_per_diameter > 0.0_wp) then
+      s = trim(merge('lower', 'raise', up))//' lbm.cells_per_diameter (it sets dx)'
+    else
+      s = 'make lbm.dx '//trim(merge('larger ', 'smaller', up))
+    end if
+  end function dx_knob
+
+  !> The key(s) behind the largest of the velocities that make up the velocity scale of
+  !! lattice_from (in cm/s): what a user changes to lower the Mach number.
+  function velocity_scale_source(c) result(s)
+    type(config_t), intent(in) :: c
+    character(len=:), allocatable :: s
+    real(wp) :: u, best, nu
+    integer :: k
+    nu = c%fluid%viscosity/c%fluid%density
+    best = abs(c%inlet%velocity)
+    s = '&inlet velocity = '//fmt_real(c%inlet%velocity)//' cm/s'
+    if (c%initial%velocity > best) then
+      best = c%initial%velocity
+      s = '&initial velocity = '//fmt_real(c%initial%velocity)//' cm/s'
+    end if
+    u = norm2(c%fluid%body_force)*c%domain%width**2/(8.0_wp*nu)
+    if (u > best) then
+      best = u
+      s = '&fluid body_force (Poiseuille peak '//fmt_real(u)//' cm/s across &domain width)'
+    end if
+    associate (p => c%particles)
+      do k = 1, p%count
+        u = hypot(p%u(k), p%v(k))
+        if (u > best) then
+          best = u
+          s = '&particles u('//itoa(k)//'), v('//itoa(k)//') of particle '//itoa(k)// &
+              ' ('//fmt_real(u)//' cm/s)'
+        end if
+        if (p%motion(k) /= 'free') cycle
+        u = sqrt(0.5_wp*pi*p%diameter(k)*abs(p%density(k)/c%fluid%density - 1.0_wp)*p%gravity)
+        if (u > best) then
+          best = u
+          s = 'the settling speed scale '//fmt_real(u)//' cm/s of particle '//itoa(k)// &
+              ' (&particles diameter('//itoa(k)//'), density('//itoa(k)//'), gravity)'
+        end if
+      end do
+    end associate
+  end function velocity_scale_source
+
+  !> A scene file holds at least one namelist group: an empty file, or one of comments and
+  !! blank lines only, would otherwise run the whole default scene without a word. (Text
+  !! outside a group, and unknown groups, are the parser's to refuse.)
+  subroutine config_check_text(text, file, err)
+    character(len=*), intent(in) :: text, file
+    character(len=:), allocatable, intent(out) :: err
+    type(config_t), target :: defaults
+    type(registry_t) :: reg
+    character(len=:), allocatable :: groups, what
+    integer :: a, b, j
+    err = ''
+    a = 1
+    do while (a <= len(text))
+      b = index(text(a:), NL)
+      if (b == 0) then
+        b = len(text) + 1
+      else
+        b = a + b - 1
+      end if
+      j = index(text(a:b - 1), '!')
+      if (j == 0) j = b - a + 1
+      ! anything but blanks, tabs and carriage returns before a comment is for the parser
+      if (verify(text(a:a + j - 2), ' '//char(9)//char(13)) > 0) return
+      a = b + 1
+    end do
+    call build_registry(defaults, reg)
+    groups = '&'//reg%keys(1)%group
+    do j = 2, size(reg%keys)
+      if (reg%keys(j)%group /= reg%keys(j - 1)%group) groups = groups//', &'//reg%keys(j)%group
+    end do
+    what = 'holds only comments and blank lines'
+    if (verify(text, ' '//char(9)//char(13)//NL) == 0) what = 'is empty'
+    err = file//': '//what//'; a scene needs at least one '// &
+          'namelist group, e.g. &domain width = 2.0 / (groups: '//groups//'); every key '// &
+          'with its default: dktlbm --print-defaults; examples: input/*.nml'
+  end subroutine config_check_text
+
   !> Every check of a configuration: each key's range or choices, then the rules that join
   !! keys. Messages name where the key was set (file:line or --set), else the file.
   !! `warnings`: newline-separated, '' if none; incomplete when `err` is set.
@@ -539,7 +641,6 @@ contains
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable, intent(out) :: warnings
     type(lattice_params_t) :: lp
-    real(wp) :: n_steps
     integer :: j
 
     warnings = ''
@@ -590,27 +691,240 @@ contains
     if (c%window%enabled) call check_window()
     if (len(err) > 0) return
 
+    ! the derived quantities, before anything that uses them: keys in range can still give
+    ! dt = 0 or Infinity and NaN in every lattice-unit quantity after it. These two work with
+    ! logarithms, so that no overflow happens (a checked build traps it) before they refuse.
+    call check_time_step()
+    if (len(err) > 0) return
+    call check_steps()
+    if (len(err) > 0) return
     lp = lattice_from(c)
+    call check_prescribed_paths()
+    if (len(err) > 0) return
+    call check_velocity_scale()
+    if (len(err) > 0) return
     if (c%particles%count >= 2) then
       call check_thresholds()
       if (len(err) > 0) return
       call check_duration()
     end if
-    if (c%run%steps == 0) then
-      n_steps = c%run%t_end/lp%dt
-      if (n_steps < 0.5_wp) then
+  contains
+    !> nu = viscosity/density and dt = nu_lb dx^2/nu (E3) are finite, and dt lies within
+    !! DT_MIN..DT_MAX s: a viscosity or density far off (wrong units, a typing error) gives
+    !! dt = 0 or Infinity and NaN in every lattice-unit quantity derived from it. In
+    !! logarithms (both keys are > 0), so that computing them cannot overflow.
+    subroutine check_time_step()
+      real(wp) :: nu_log, dt_log
+      character(len=:), allocatable :: head
+      nu_log = log10(c%fluid%viscosity) - log10(c%fluid%density)
+      dt_log = log10(cs2*(c%lbm%tau - 0.5_wp)) + 2.0_wp*log10(c%lbm%dx) - nu_log
+      head = origin_of(reg, 'fluid', 'viscosity', src('density', 'fluid'))// &
+             ': &fluid viscosity = '//val('fluid', 'viscosity')//' g/(cm s) and density = '// &
+             val('fluid', 'density')//' g/cm^3 give '
+      if (nu_log < log10(tiny(1.0_wp)) .or. nu_log > log10(huge(1.0_wp))) then
+        err = head//'the kinematic viscosity nu = viscosity/density = '//power(nu_log)// &
+              ' cm^2/s; allowed: a finite nu > 0 (water: viscosity = 0.01, density = 1.0); '// &
+              'change &fluid viscosity or density'
+      else if (dt_log < log10(DT_MIN) .or. dt_log > log10(DT_MAX)) then
+        err = head//'nu = '//power(nu_log)//' cm^2/s, and with '//dx_text()// &
+              ' and &lbm tau = '//val('lbm', 'tau')//' the time step dt = (tau - 1/2)/3 '// &
+              'dx^2/nu = '//power(dt_log)//' s; allowed: '//fmt_real(DT_MIN)//' s <= dt <= '// &
+              fmt_real(DT_MAX)//' s; check &fluid viscosity (g/(cm s)) and density (g/cm^3) '// &
+              '(water: 0.01 and 1.0), then '
+        ! a smaller dx makes dt smaller (dt ~ dx^2)
+        if (dt_log > log10(DT_MAX)) then
+          err = err//dx_knob(c)
+        else
+          err = err//dx_knob(c, larger=.true.)
+        end if
+      end if
+    end subroutine check_time_step
+
+    !> t_end/dt rounds to 1..MAX_STEPS time steps (run.steps > 0 is range-checked as a key).
+    !! dt is within DT_MIN..DT_MAX here; t_end/dt is compared in logarithms as well.
+    subroutine check_steps()
+      real(wp) :: dt, n_log
+      if (c%run%steps > 0) return
+      dt = cs2*(c%lbm%tau - 0.5_wp)*c%lbm%dx**2/(c%fluid%viscosity/c%fluid%density)
+      n_log = log10(c%run%t_end) - log10(dt)
+      if (n_log < log10(0.5_wp)) then
         err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives 0 time '// &
-              'steps: dt = '//fmt_real(lp%dt)//' s (from &lbm dx, tau and &fluid density, '// &
-              'viscosity); allowed: t_end >= dt/2, or &run steps >= 1'
-        return
-      else if (n_steps >= real(huge(1), wp)) then
+              'steps: dt = '//fmt_real(dt)//' s (from '//dx_text()//', &lbm tau = '// &
+              val('lbm', 'tau')//' and &fluid viscosity/density); allowed: t_end >= dt/2 = '// &
+              fmt_real(0.5_wp*dt)//' s, or &run steps >= 1'
+      else if (n_log > log10(MAX_STEPS)) then
         err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives '// &
-              fmt_real(anint(n_steps))//' time steps of dt = '//fmt_real(lp%dt)// &
-              ' s; allowed: at most '//itoa(huge(1))//'; make t_end smaller or dx larger'
+              power(n_log)//' time steps of dt = '//fmt_real(dt)//' s (from '// &
+              dx_text()//', &lbm tau = '//val('lbm', 'tau')//' and &fluid viscosity/'// &
+              'density); allowed: at most '//itoa(nint(MAX_STEPS))//' steps, i.e. t_end <= '// &
+              fmt_real(round6(MAX_STEPS*dt, down=.true.))//' s; make t_end smaller, or dt '// &
+              'larger: raise lbm.tau, or '//dx_knob(c, larger=.true.)
+      end if
+    end subroutine check_steps
+
+    !> 10^x as text: the value to six digits where a double holds it, else '1.0e<x>'
+    function power(x) result(s)
+      real(wp), intent(in) :: x
+      character(len=:), allocatable :: s
+      if (abs(x) < 300.0_wp) then
+        s = fmt_real(round6(10.0_wp**x))
+      else
+        s = 'about 1.0e'//itoa(nint(x))
+      end if
+    end function power
+
+    !> The velocity scale of the run is finite, and a prescribed particle (which moves at its
+    !! velocity whatever the flow does, so the fluid next to it does too) is not faster than
+    !! run.mach_limit allows: the guard would otherwise stop the run at its first check, and
+    !! name a node instead of the particle.
+    subroutine check_velocity_scale()
+      real(wp) :: speed, u_max
+      integer :: k
+      if (.not. (ieee_is_finite(lp%u_scale_lb) .and. ieee_is_finite(lp%mach))) then
+        err = src('density', 'fluid')//': the expected velocity scale is '// &
+              fmt_real(lp%u_scale_lb)//' in lattice units, from '//velocity_scale_source(c)// &
+              ' with dt = '//fmt_real(lp%dt)//' s and dx = '//fmt_real(lp%dx)// &
+              ' cm; allowed: a finite velocity scale; change the key named'
         return
       end if
-    end if
-  contains
+      u_max = c%run%mach_limit*sqrt(cs2)*lp%dx/lp%dt
+      associate (p => c%particles)
+        do k = 1, p%count
+          if (p%motion(k) /= 'prescribed') cycle
+          speed = hypot(p%u(k), p%v(k))
+          if (speed <= u_max) cycle
+          err = origin_of(reg, 'particles', 'v', src('u', 'particles'))//': '// &
+                item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                ' with motion('//itoa(k)//') = ''prescribed'': particle '//itoa(k)// &
+                ' moves at '//fmt_real(speed)//' cm/s, Mach '// &
+                fmt_real(round6(speed*lp%dt/lp%dx/sqrt(cs2)))// &
+                ' on this lattice (dx = '//fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)// &
+                ' s), above &run mach_limit = '//val('run', 'mach_limit')//'; allowed: a '// &
+                'speed up to '//fmt_real(round6(u_max, down=.true.))//' cm/s; lower u('// &
+                itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
+                ' or lower &lbm tau (both shrink dt)'
+          return
+        end do
+      end associate
+    end subroutine check_velocity_scale
+
+    !> A prescribed particle moves in a straight line at its constant velocity, so where it is
+    !! at the run's end (steps x dt) is known now: its path must stay in the channel (a wall
+    !! at least one radius away, an open end not passed by its centre) and not run into a fixed
+    !! or another prescribed particle; neither can make way, and the run would go on with a
+    !! particle outside the lattice or two solids in one place.
+    subroutine check_prescribed_paths()
+      real(wp) :: t_run, t_hit
+      integer :: k, m
+      character(len=:), allocatable :: head, what
+      t_run = lp%steps*lp%dt
+      associate (p => c%particles, d => c%domain)
+        do k = 1, p%count
+          if (p%motion(k) /= 'prescribed') cycle
+          head = origin_of(reg, 'particles', 'v', src('u', 'particles'))// &
+                 ': &particles motion('//itoa(k)//') = ''prescribed'' with u('//itoa(k)// &
+                 ') = '//fmt_real(p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                 ' cm/s from (x, y) = ('//fmt_real(p%x(k))//', '//fmt_real(p%y(k))//') cm: '
+          what = ''
+          t_hit = huge(1.0_wp)
+          call leaves(k, p%x(k), p%u(k), d%width, d%sides == 'wall', d%sides == 'wall', 'x', &
+                      'side wall', 'side wall', what, t_hit)
+          ! in a window the lattice follows the free particles; the run checks y as it goes
+          if (.not. c%window%enabled) &
+            call leaves(k, p%y(k), p%v(k), d%height, d%lower == 'wall', d%upper == 'wall', &
+                        'y', 'lower end', 'upper end', what, t_hit)
+          do m = 1, p%count
+            if (m == k .or. p%motion(m) == 'free') cycle
+            if (p%motion(m) == 'prescribed' .and. m < k) cycle ! the pair was checked from m
+            call meets(k, m, what, t_hit)
+          end do
+          if (len(what) > 0) then
+            err = head//what//' at t = '//fmt_real(round6(t_hit))//' s, before the run '// &
+                  'ends at t = '//fmt_real(round6(t_run))//' s (&run t_end/steps); allowed: '// &
+                  'a path that stays clear until the end; change u('//itoa(k)//'), v('// &
+                  itoa(k)//'), x('//itoa(k)//'), y('//itoa(k)//'), or end the run before '// &
+                  't = '//fmt_real(round6(t_hit))//' s'
+            return
+          end if
+        end do
+      end associate
+    end subroutine check_prescribed_paths
+
+    !> The first time in 0..t_run at which particle `k`, moving at `vel` from `pos` along
+    !! one axis of `length`, touches a wall (`lo_wall`, `hi_wall`: at least one radius) or takes
+    !! its centre past an open end; `what` and `t_hit` keep the earliest event.
+    subroutine leaves(k, pos, vel, length, lo_wall, hi_wall, key, lo_name, hi_name, what, &
+                      t_hit)
+      integer, intent(in) :: k
+      real(wp), intent(in) :: pos, vel, length
+      logical, intent(in) :: lo_wall, hi_wall
+      character(len=*), intent(in) :: key, lo_name, hi_name
+      character(len=:), allocatable, intent(inout) :: what
+      real(wp), intent(inout) :: t_hit
+      real(wp) :: r, lo, hi, t, t_run
+      t_run = lp%steps*lp%dt
+      r = 0.5_wp*c%particles%diameter(k)
+      lo = merge(r, 0.0_wp, lo_wall)
+      hi = merge(length - r, length, hi_wall)
+      if (vel < 0.0_wp) then
+        t = (lo - pos)/vel
+        if (t <= t_run .and. t < t_hit) then
+          t_hit = t
+          what = 'its '//trim(merge('surface', 'centre ', lo_wall))//' reaches the '// &
+                 lo_name//' at '//key//' = 0'
+        end if
+      else if (vel > 0.0_wp) then
+        t = (hi - pos)/vel
+        if (t <= t_run .and. t < t_hit) then
+          t_hit = t
+          what = 'its '//trim(merge('surface', 'centre ', hi_wall))//' reaches the '// &
+                 hi_name//' at '//key//' = '//fmt_real(length)
+        end if
+      end if
+    end subroutine leaves
+
+    !> The first time in 0..t_run at which prescribed particle `k` and fixed or prescribed
+    !! particle `m` come within the contact distance (d_k + d_m)/2 (they move in straight
+    !! lines, so the gap is a quadratic in time).
+    subroutine meets(k, m, what, t_hit)
+      integer, intent(in) :: k, m
+      character(len=:), allocatable, intent(inout) :: what
+      real(wp), intent(inout) :: t_hit
+      real(wp) :: dx0, dy0, wx, wy, a, b, q, reach, disc, t
+      associate (p => c%particles)
+        dx0 = p%x(k) - p%x(m)
+        dy0 = p%y(k) - p%y(m)
+        wx = p%u(k) - merge(p%u(m), 0.0_wp, p%motion(m) == 'prescribed')
+        wy = p%v(k) - merge(p%v(m), 0.0_wp, p%motion(m) == 'prescribed')
+        reach = 0.5_wp*(p%diameter(k) + p%diameter(m))*(1.0_wp - CONTACT_TOL)
+        a = wx*wx + wy*wy
+        b = dx0*wx + dy0*wy
+        q = dx0*dx0 + dy0*dy0 - reach*reach
+        if (a <= 0.0_wp .or. b >= 0.0_wp) return ! not approaching
+        disc = b*b - a*q
+        if (disc <= 0.0_wp) return               ! passes by
+        t = (-b - sqrt(disc))/a
+        if (t <= lp%steps*lp%dt .and. t < t_hit) then
+          t_hit = max(t, 0.0_wp)
+          what = 'it runs into particle '//itoa(m)//' (motion('//itoa(m)//') = '// &
+                 quoted(trim(p%motion(m)))//': the centres come within (diameter('//itoa(k)// &
+                 ') + diameter('//itoa(m)//'))/2 = '// &
+                 fmt_real(0.5_wp*(p%diameter(k) + p%diameter(m)))//' cm)'
+        end if
+      end associate
+    end subroutine meets
+
+    !> '&lbm dx = ..' or '&lbm cells_per_diameter = .. (dx = .. cm)', whichever set dx
+    function dx_text() result(s)
+      character(len=:), allocatable :: s
+      if (c%lbm%cells_per_diameter > 0.0_wp) then
+        s = '&lbm cells_per_diameter = '//val('lbm', 'cells_per_diameter')//' (dx = '// &
+            fmt_real(c%lbm%dx)//' cm)'
+      else
+        s = '&lbm dx = '//val('lbm', 'dx')
+      end if
+    end function dx_text
+
     function val(g, k) result(s)
       character(len=*), intent(in) :: g, k
       character(len=:), allocatable :: s
@@ -856,6 +1170,26 @@ contains
                    ' s; a pattern ''never'' or ''once'' may only mean the run stopped early'
       end associate
     end subroutine check_duration
+
+    !> x to six significant digits, for derived values in messages (no round-off tail);
+    !! rounded towards zero with `down` (a bound that must still hold)
+    pure real(wp) function round6(x, down)
+      real(wp), intent(in) :: x
+      logical, intent(in), optional :: down
+      real(wp) :: unit, q
+      integer :: e
+      round6 = x
+      if (abs(x) <= 0.0_wp .or. .not. ieee_is_finite(x)) return
+      e = floor(log10(abs(x))) - 5
+      unit = 10.0_wp**abs(e)
+      ! divide or multiply by an exact power of ten, never by its inexact reciprocal
+      q = merge(x/unit, x*unit, e >= 0)
+      q = anint(q)
+      if (present(down)) then
+        if (down) q = aint(merge(x/unit, x*unit, e >= 0))
+      end if
+      round6 = merge(q*unit, q/unit, e >= 0)
+    end function round6
 
     !> x rounded up to three decimals (a bound printed without round-off noise that still
     !! holds: 21.499999999999993 -> 21.5)
@@ -1144,9 +1478,13 @@ contains
       '                         quotes, e.g. --set lbm.tau=0.7 --set output.dir=/tmp/run', &
       '  --restart CHECKPOINT   resume the run from a checkpoint file it wrote (same FILE', &
       '                         and --set options; any number of ranks); the output continues', &
-      '  --check                validate, print the derived lattice parameters and exit', &
+      '  --check                validate, print the derived lattice parameters and exit;', &
+      '                         no lattice is allocated. Exits non-zero for whatever the', &
+      '                         run would refuse (memory, an earlier run''s files in', &
+      '                         output.dir). With --restart the checkpoint is not read', &
       '  --print-defaults       print every key with its default, unit, allowed values and', &
-      '                         meaning, as a namelist file, and exit', &
+      '                         meaning, as a namelist file, and exit; with FILE (and', &
+      '                         --set) the values they give instead of the defaults', &
       '  --help                 print this help and exit', &
       '  --version              print the version and exit', &
       '', &

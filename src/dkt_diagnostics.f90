@@ -16,8 +16,8 @@ module dkt_diagnostics
   use dkt_errors, only: fatal_local
   implicit none
   private
-  public :: guard_check, pair_diag_t, pair_diag_init, pair_diag_update, pair_pattern, &
-            pair_gaps, drag_coefficient
+  public :: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, pair_diag_update, &
+            pair_pattern, pair_gaps, drag_coefficient
 
   !> The kissing episodes of a pair, updated as the run goes.
   type :: pair_diag_t
@@ -30,7 +30,17 @@ module dkt_diagnostics
     real(wp), allocatable :: gap_min(:)  !! smallest D_r of each episode
   end type pair_diag_t
 
+  !> how to make dx smaller in the running scene (lbm.dx, or lbm.cells_per_diameter when that
+  !! sets dx), for the guards' advice
+  character(len=:), allocatable, save :: dx_advice
+
 contains
+
+  !> Set how the guards' messages tell to make dx smaller (the scene's own knob).
+  subroutine guard_set_advice(dx_knob)
+    character(len=*), intent(in) :: dx_knob
+    dx_advice = dx_knob
+  end subroutine guard_set_advice
 
   !> Check every node of the slab; stop all ranks on a non-finite value or |u|/c_s above
   !! mach_limit. Returns the largest Mach number over all ranks (a collective call).
@@ -47,6 +57,7 @@ contains
     integer :: x, j
     character(len=512) :: msg
 
+    if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
     mach_max = 0.0_wp
     do j = 1, dom%nyl
       do x = 1, dom%nx
@@ -56,7 +67,7 @@ contains
           write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') 'non-finite value at step ', &
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &
             ', ', y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. The run became unstable: ', &
-            'increase lbm.tau, refine lbm.dx (smaller dt), or lower the velocity scale'
+            'increase lbm.tau, '//dx_advice//' (smaller dt), or lower the velocity scale'
           call fatal_local(trim(msg))
         end if
         ma = sqrt((ux*ux + uy*uy)/cs2)
@@ -64,8 +75,8 @@ contains
           write (msg, '(a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') &
             'Mach number ', ma, ' above run.mach_limit = ', mach_limit, ' at step ', step, &
             ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, ', ', &
-            y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. Refine lbm.dx or lower lbm.tau ', &
-            '(both shrink dt and the lattice velocity), or lower the flow speed'
+            y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. Lower lbm.tau or '//dx_advice, &
+            ' (both shrink dt and the lattice velocity), or lower the flow speed'
           call fatal_local(trim(msg))
         end if
         mach_max = max(mach_max, ma)

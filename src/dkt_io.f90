@@ -181,7 +181,7 @@ contains
                                           !! final output of a run, not a scheduled one)
     character(len=*), intent(in) :: field_order(:) !! the order the fields were written in
     character(len=:), allocatable, intent(out) :: err
-    integer(hid_t) :: fapl, grp
+    integer(hid_t) :: fapl
     integer :: hdferr, k
     logical :: bad, any_bad, exists
     character(len=:), allocatable :: base

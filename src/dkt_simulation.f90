@@ -4,12 +4,14 @@
 module dkt_simulation
   use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size, &
                      MPI_Iallreduce, MPI_Wait, MPI_Request, MPI_STATUS_IGNORE, MPI_INTEGER, &
-                     MPI_BOR
+                     MPI_BOR, MPI_Allreduce, MPI_MAX, MPI_Comm_split_type, &
+                     MPI_COMM_TYPE_SHARED, MPI_INFO_NULL, MPI_Comm_free, MPI_IN_PLACE
   use iso_fortran_env, only: compiler_version
-  use dkt_kinds, only: wp, i8, pi, cs2
-  use dkt_errors, only: fatal_all, fatal_local, warn
+  use dkt_kinds, only: wp, i8, pi, cs2, mpi_wp
+  use dkt_errors, only: fatal_all, fatal_local, warn, EXIT_RUNTIME
   use dkt_config, only: config_t, lattice_params_t, config_output_dir, window_bottom, &
-                        config_to_namelist, kiss_thresholds, kiss_enter_cells
+                        config_to_namelist, kiss_thresholds, kiss_enter_cells, &
+                        velocity_scale_source, dx_knob
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
@@ -22,8 +24,8 @@ module dkt_simulation
                            particles_solid_field, particles_stable_substeps, MOTION_FREE, &
                            MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
-  use dkt_diagnostics, only: guard_check, pair_diag_t, pair_diag_init, pair_diag_update, &
-                             pair_pattern, pair_gaps, drag_coefficient
+  use dkt_diagnostics, only: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, &
+                             pair_diag_update, pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_t, window_init, window_offset, window_follow, window_escaped
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             NSTATE
@@ -32,12 +34,12 @@ module dkt_simulation
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open, log_close
   use dkt_filesystem, only: make_directories, rename_file, remove_file, path_exists
-  use dkt_registry, only: itoa
+  use dkt_registry, only: itoa, fmt_real
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   implicit none
   private
   public :: simulation_t, simulation_setup, simulation_summary, simulation_open_output, &
-            simulation_run, simulation_finish, simulation_restore
+            simulation_run, simulation_finish, simulation_restore, simulation_check_outputs
 
   !> output fields; the particle index field only in a scene with particles
   character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
@@ -45,6 +47,8 @@ module dkt_simulation
   !> the /particles series besides t, one column per particle
   character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
                                                     'omega ', 'fx    ', 'fy    ', 'torque']
+
+  real(wp), parameter :: GIB = 2.0_wp**30, MIB = 2.0_wp**20
 
   type :: path_t
     character(len=:), allocatable :: s
@@ -90,13 +94,18 @@ contains
     end select
   end function end_kind
 
-  !> Decompose, allocate the two lattices and set the initial state. Every rank calls it; a
-  !! decomposition that cannot work stops all ranks with the largest rank count that does.
-  subroutine simulation_setup(sim, cfg, lp, comm)
+  !> Decompose, check that the memory the run needs is there, allocate the two lattices and
+  !! set the initial state. Every rank calls it; a decomposition that cannot work stops all
+  !! ranks with the largest rank count that does, a run that needs more memory than a node
+  !! gives stops them before anything large is allocated. `lattices` = .false. (--check) sets
+  !! up everything the start-up report needs but allocates no lattice.
+  subroutine simulation_setup(sim, cfg, lp, comm, lattices)
     type(simulation_t), intent(inout) :: sim
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(in) :: lp
     type(MPI_Comm), intent(in) :: comm
+    logical, intent(in), optional :: lattices
+    logical :: with_lattices
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
@@ -115,13 +124,20 @@ contains
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
+    call check_memory(sim)
+    with_lattices = .true.
+    if (present(lattices)) with_lattices = lattices
     call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
                        end_kind(cfg%domain%upper), lp%u_in_lb, cfg%inlet%profile == 'parabolic', &
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
-    allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
-    allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
-    call initialise(sim)
+    if (with_lattices) then
+      allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      call initialise(sim)
+    end if
+    ! the guards' advice names the knob that sets dx in this scene
+    call guard_set_advice(dx_knob(cfg))
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
       associate (d1 => maxval(cfg%particles%diameter(1:cfg%particles%count))/lp%dx)
@@ -136,6 +152,99 @@ contains
     end if
     sim%stopped_early = ''
   end subroutine simulation_setup
+
+  !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
+  !! memory check: (1) the two lattices f and f_next, 9 doubles per padded node (nxp columns,
+  !! nyl rows and two halo rows); (2) the particles: per-row force sums (3 doubles per row and
+  !! particle) and the boundary links, at most 8 per surface node and about pi d + 8 surface
+  !! nodes per particle of d spacings (28 bytes a link); (3) the output: the field buffer of
+  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
+  pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
+    type(config_t), intent(in) :: cfg
+    type(lattice_params_t), intent(in) :: lp
+    integer, intent(in) :: nxp, nyl
+    real(wp) :: bytes(3)
+    real(wp) :: d_cells
+    integer :: n
+    bytes(1) = 2.0_wp*9.0_wp*8.0_wp*real(nxp, wp)*real(nyl + 2, wp)
+    n = cfg%particles%count
+    bytes(2) = 0.0_wp
+    if (n > 0) then
+      d_cells = maxval(cfg%particles%diameter(1:n))/lp%dx
+      bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
+    end if
+    bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp)
+  end function rank_memory
+
+  !> Stop every rank before the lattices are allocated when the ranks of one node would need
+  !! more than it gives: run.memory_limit GiB, or (0) MemAvailable of /proc/meminfo on rank 0's
+  !! node. A node holds at most the largest count of ranks sharing one node; each rank is
+  !! counted with the largest slab. Without /proc/meminfo and with no limit, nothing is checked.
+  subroutine check_memory(sim)
+    type(simulation_t), intent(inout) :: sim
+    type(MPI_Comm) :: node
+    real(wp) :: bytes(3), need, avail, limit
+    integer :: node_ranks
+    character(len=:), allocatable :: source
+    character(len=160) :: msg
+    bytes = rank_memory(sim%cfg, sim%lp, sim%dom%nxp, sim%dom%nyl)
+    call MPI_Allreduce(MPI_IN_PLACE, bytes, 3, mpi_wp, MPI_MAX, sim%dom%comm)
+    call MPI_Comm_split_type(sim%dom%comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, node)
+    call MPI_Comm_size(node, node_ranks)
+    call MPI_Comm_free(node)
+    call MPI_Allreduce(MPI_IN_PLACE, node_ranks, 1, MPI_INTEGER, MPI_MAX, sim%dom%comm)
+    avail = -1.0_wp
+    if (sim%dom%rank == 0) avail = mem_available()
+    call MPI_Bcast(avail, 1, mpi_wp, 0, sim%dom%comm)
+    if (sim%cfg%run%memory_limit > 0.0_wp) then
+      limit = sim%cfg%run%memory_limit*GIB
+      source = 'run.memory_limit'
+    else
+      limit = avail
+      source = 'MemAvailable in /proc/meminfo'
+    end if
+    need = real(node_ranks, wp)*sum(bytes)
+    if (limit < 0.0_wp .or. need <= limit) return
+    write (msg, '(a,i0,a,i0,a,i0,a)') ' for ', sim%lp%nx, ' x ', sim%lp%ny, &
+      ' cells, times ', node_ranks, ' ranks on a node = '
+    call fatal_all(trim(sim%cfg%file)//': the run needs '//fixed2(sum(bytes)/GIB)// &
+                   ' GiB per rank (lattices '//fixed2(bytes(1)/GIB)//' GiB, particle arrays '// &
+                   fixed2(bytes(2)/GIB)//' GiB, output buffers '//fixed2(bytes(3)/GIB)// &
+                   ' GiB)'//trim(msg)//' '//fixed2(need/GIB)//' GiB, more than the '// &
+                   fixed2(limit/GIB)//' GiB allowed ('//source//'); use fewer '// &
+                   'cells: a larger lbm.dx, a smaller lbm.cells_per_diameter (it sets dx '// &
+                   'from the smallest particle; with &pair a smaller gamma) or a smaller '// &
+                   '&domain; or spread the ranks over more nodes; or set run.memory_limit '// &
+                   '(GiB) to what the run may really use')
+  end subroutine check_memory
+
+  !> x rounded to two decimals, as text ('0.05', '335.32')
+  function fixed2(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    s = fmt_real(anint(x*100.0_wp)/100.0_wp)
+  end function fixed2
+
+  !> MemAvailable of /proc/meminfo in bytes; -1 where it cannot be read.
+  function mem_available() result(bytes)
+    real(wp) :: bytes
+    character(len=256) :: line
+    integer :: u, ios
+    real(wp) :: kib
+    bytes = -1.0_wp
+    open (newunit=u, file='/proc/meminfo', status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (index(line, 'MemAvailable:') == 1) then
+        read (line(14:), *, iostat=ios) kib
+        if (ios == 0) bytes = kib*1024.0_wp
+        exit
+      end if
+    end do
+    close (u)
+  end function mem_available
 
   !> The particles of the scene in lattice units (docs/model.md §3–4), their first boundary links
   !! and the fluid inside them set to their velocity.
@@ -186,7 +295,7 @@ contains
       call log_line(trim(line))
     end if
     call particles_find_links(sim%parts, sim%dom)
-    call particles_interior(sim%parts, sim%dom, sim%f)
+    if (associated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
 
   !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
@@ -279,8 +388,9 @@ contains
   !! starts (and by --check instead of running).
   subroutine simulation_summary(sim)
     type(simulation_t), intent(in) :: sim
-    character(len=256) :: line, particles, window
-    real(wp) :: s(0:8), lattice_mib, output_mib, d1
+    character(len=512) :: line
+    character(len=256) :: particles, window
+    real(wp) :: s(0:8), mem(3), d1
     integer :: k
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
@@ -306,15 +416,15 @@ contains
       end if
       if (lp%mach > cfg%run%mach_limit) then
         write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
-          ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '// &
-          'Refine lbm.dx or lower lbm.tau (both shrink dt), or lower the velocity scale'
-        call warn(trim(line))
+          ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '
+        call warn(trim(line)//' The velocity scale comes from '// &
+                  velocity_scale_source(cfg)//': lower it, or '//dx_knob(cfg)// &
+                  ' or lower lbm.tau (both shrink dt)')
       end if
       write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
         int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
       call log_line(trim(line))
-      lattice_mib = 2.0_wp*9.0_wp*real(dom%nxp, wp)*real(dom%nyl + 2, wp)*8.0_wp/2.0_wp**20
-      output_mib = 6.0_wp*real(dom%nx, wp)*real(dom%nyl, wp)*8.0_wp/2.0_wp**20
+      mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
       if (sim%particles_on) then
         write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
           ' boundary links on rank 0)'
@@ -327,9 +437,9 @@ contains
         write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
       end if
-      write (line, '(a,f10.2,a,f8.2,a)') 'memory per rank: lattices ', lattice_mib, &
-        ' MiB, output buffers ', output_mib, ' MiB while writing; '//trim(particles)// &
-        '; '//trim(window)
+      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB, particle arrays '// &
+             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
+             trim(particles)//'; '//trim(window)
       call log_line(trim(line))
       line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
@@ -372,12 +482,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     character(len=:), allocatable :: dir, err, nml
     character(len=256) :: msg
-    character(len=4096) :: found
-    integer :: ios, k
-    !> the files of a run besides <name>.h5, as suffixes of the scene name
-    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
-                                                    '.xdmf           ', '_diagnostics.csv', &
-                                                    '.checkpoint     ', '.finished       ']
+    integer :: ios
     character(len=64) :: pnames(12)
     real(wp) :: pvalues(12), s(0:8)
     logical :: ok
@@ -409,21 +514,7 @@ contains
     end if
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
     ! that a file that appears meanwhile is not clobbered)
-    if (.not. sim%cfg%output%overwrite) then
-      found = ''
-      if (sim%dom%rank == 0) then
-        do k = 1, size(RUN_FILES)
-          if (path_exists(dir//'/'//sim%cfg%name//trim(RUN_FILES(k)))) &
-            found = trim(found)//', '//dir//'/'//sim%cfg%name//trim(RUN_FILES(k))
-        end do
-      end if
-      ok = len_trim(found) == 0
-      call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-      if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir// &
-                                   ''' holds files of an earlier run of this scene ('// &
-                                   trim(found(3:))//'); set output.overwrite = .true., '// &
-                                   'choose another output.dir, or resume with --restart')
-    end if
+    call simulation_check_outputs(sim)
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
@@ -480,6 +571,36 @@ contains
       sim%csv_open = .true.
     end subroutine reopen_csv
   end subroutine simulation_open_output
+
+  !> Stop every rank when output.dir holds a file of an earlier run of this scene and
+  !! output.overwrite is off; the run makes this check before it writes, and --check makes the
+  !! same one so that it refuses what the run would refuse. A resumed run continues its files.
+  subroutine simulation_check_outputs(sim)
+    type(simulation_t), intent(in) :: sim
+    !> the files of a run besides <name>.h5, as suffixes of the scene name
+    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
+                                                    '.xdmf           ', '_diagnostics.csv', &
+                                                    '.checkpoint     ', '.finished       ']
+    character(len=4096) :: found
+    character(len=:), allocatable :: dir
+    logical :: ok
+    integer :: k
+    if (sim%cfg%output%overwrite .or. sim%restarted) return
+    dir = config_output_dir(sim%cfg)
+    found = ''
+    if (sim%dom%rank == 0) then
+      do k = 1, size(RUN_FILES)
+        if (path_exists(dir//'/'//sim%cfg%name//trim(RUN_FILES(k)))) &
+          found = trim(found)//', '//dir//'/'//sim%cfg%name//trim(RUN_FILES(k))
+      end do
+    end if
+    ok = len_trim(found) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir// &
+                                 ''' holds files of an earlier run of this scene ('// &
+                                 trim(found(3:))//'); set output.overwrite = .true., '// &
+                                 'choose another output.dir, or resume with --restart')
+  end subroutine simulation_check_outputs
 
   !> The time loop.
   subroutine simulation_run(sim)
@@ -767,8 +888,73 @@ contains
     call particles_move(sim%parts, sim%dom, sim%f_next, &
                         sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
     if (sim%window_on) call follow_particles(sim, n)
+    if (sim%particles_move) call check_particle_places(sim, n)
     if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
+
+  !> Stop every rank when a particle left the lattice (its centre beyond a side or an end), a
+  !! prescribed particle reached a wall, or a prescribed particle entered another body: a
+  !! fixed or prescribed one at contact, a free one deeper than the larger radius (a free
+  !! particle normally makes way; one pinned against a wall cannot). The input check refuses
+  !! what a constant prescribed velocity makes predictable; this catches what it cannot
+  !! (a moving window, free particles). Every rank holds the same particle states, so every
+  !! rank stops at the same step.
+  subroutine check_particle_places(sim, n)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: n
+    real(wp) :: nx, ny, y0, dist, reach
+    integer :: k, m
+    character(len=:), allocatable :: what
+    character(len=160) :: where
+    logical :: walls_x, wall_lo, wall_hi
+    nx = real(sim%lp%nx, wp)
+    ny = real(sim%lp%ny, wp)
+    walls_x = sim%cfg%domain%sides == 'wall'
+    wall_lo = sim%cfg%domain%lower == 'wall' .and. .not. sim%window_on
+    wall_hi = sim%cfg%domain%upper == 'wall' .and. .not. sim%window_on
+    do k = 1, sim%parts%n
+      what = ''
+      associate (p => sim%parts%p(k))
+        if (p%x < 0.0_wp .or. p%x > nx) then
+          what = 'its centre left the channel through a side'
+        else if (p%y < 0.0_wp) then
+          what = 'its centre passed the lower end'//trim(merge(' of the window', '              ', &
+                                                               sim%window_on))
+        else if (p%y > ny) then
+          what = 'its centre passed the upper end'//trim(merge(' of the window', '              ', &
+                                                               sim%window_on))
+        else if (p%motion == MOTION_PRESCRIBED) then
+          if (walls_x .and. (p%x < p%r .or. p%x > nx - p%r)) what = 'it reached a side wall'
+          if (wall_lo .and. p%y < p%r) what = 'it reached the lower end'
+          if (wall_hi .and. p%y > ny - p%r) what = 'it reached the upper end'
+          do m = 1, sim%parts%n
+            if (m == k) cycle
+            associate (q => sim%parts%p(m))
+              dist = hypot(p%x - q%x, p%y - q%y)
+              reach = p%r + q%r
+              if (q%motion == MOTION_FREE) reach = max(p%r, q%r)
+              if (dist < reach) what = 'it entered particle '//itoa(m)
+            end associate
+          end do
+        end if
+        if (len(what) == 0) cycle
+        y0 = 0.0_wp
+        if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
+        write (where, '(a,es12.5,a,es12.5,a,i0,a,es12.5,a)') ' at (x, y) = (', &
+          p%x*sim%lp%dx, ',', p%y*sim%lp%dx + y0, ') cm, step ', n, ' (t = ', n*sim%lp%dt, ' s)'
+      end associate
+      call fatal_all(trim(sim%cfg%file)//': particle '//itoa(k)//' (motion = '// &
+                     quoted_motion(sim%cfg%particles%motion(k))//'): '//what//trim(where)// &
+                     '; the run stops. Change its velocity or start (&particles u, v, x, y of '// &
+                     'particle '//itoa(k)//'), or end the run earlier', EXIT_RUNTIME)
+    end do
+  contains
+    function quoted_motion(m) result(q)
+      character(len=*), intent(in) :: m
+      character(len=:), allocatable :: q
+      q = ''''//trim(m)//''''
+    end function quoted_motion
+  end subroutine check_particle_places
 
   !> docs/model.md §5: move the window (the new populations in f_next) with the lowest particle; a
   !! particle near the upper end (the pair has separated by more than the window holds) ends
@@ -951,7 +1137,7 @@ contains
     if (sim%csv_open) close (sim%csv_unit)
     sim%csv_open = .false.
     call log_close()
-    deallocate (sim%f, sim%f_next)
+    if (associated(sim%f)) deallocate (sim%f, sim%f_next)
     call domain_free(sim%dom)
   end subroutine simulation_finish
 

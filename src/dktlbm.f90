@@ -6,10 +6,11 @@ program dktlbm
                      MPI_INTEGER, MPI_CHARACTER
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
-                        config_load, derive_lattice, config_to_namelist, print_help
+                        config_load, derive_lattice, config_to_namelist, print_help, &
+                        config_check_text
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
                             simulation_open_output, simulation_run, simulation_finish, &
-                            simulation_restore
+                            simulation_restore, simulation_check_outputs
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -25,23 +26,35 @@ program dktlbm
 
   call parse_command_line(cli, err)
   if (len(err) > 0) call fatal_all(err)
-  if (cli%help .or. cli%version .or. cli%print_defaults) then
+  if (cli%help .or. cli%version .or. (cli%print_defaults .and. len(cli%nml_file) == 0)) then
     if (rank == 0) call print_info(cli)
     call MPI_Finalize()
     stop
   end if
 
   call read_input(cli%nml_file, text)
+  call config_check_text(text, cli%nml_file, err)
+  if (len(err) > 0) call fatal_all(err)
   call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings)
   if (len(err) > 0) call fatal_all(err)
+  if (cli%print_defaults) then
+    ! the file's values with the --set options applied, as a namelist that reads back
+    if (rank == 0) write (output_unit, '(a)', advance='no') cfg%given
+    call MPI_Finalize()
+    stop
+  end if
   call derive_lattice(cfg, lp, err)
   if (len(err) > 0) call fatal_all(err)
   call warn_lines(warnings)
 
-  call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD)
-  if (len(cli%restart) > 0) call simulation_restore(sim, cli%restart)
+  ! --check sets up all but the lattices (the memory check included), reports and refuses
+  ! what the run would refuse
+  call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
+  if (len(cli%restart) > 0 .and. .not. cli%check) call simulation_restore(sim, cli%restart)
   call simulation_summary(sim)
-  if (.not. cli%check) then
+  if (cli%check) then
+    if (len(cli%restart) == 0) call simulation_check_outputs(sim)
+  else
     call simulation_open_output(sim)
     call simulation_run(sim)
   end if
@@ -58,13 +71,14 @@ contains
     character(len=:), allocatable :: err
     integer :: n
     n = -1
-    err = ''
     if (rank == 0) then
       call read_text_file(path, text, err)
       if (len(err) == 0) n = len(text)
     end if
     call MPI_Bcast(n, 1, MPI_INTEGER, 0, MPI_COMM_WORLD)
-    if (n < 0) call fatal_all(err)
+    ! only rank 0 read the file and prints the message; the others stop with it
+    if (n < 0 .and. rank == 0) call fatal_all(err)
+    if (n < 0) call fatal_all('')
     if (rank /= 0) allocate (character(len=n) :: text)
     if (n > 0) call MPI_Bcast(text, n, MPI_CHARACTER, 0, MPI_COMM_WORLD)
   end subroutine read_input

@@ -19,13 +19,16 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import re
+import resource
+import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
-from dkt_run import INPUT, run_args
+from dkt_run import EXE, INPUT, ROOT, mpi_env, run_args
 
 RANKS = 2
 TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails the test
@@ -33,6 +36,7 @@ TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails
 # exit; the ranks here have already stopped, so the wait only slows the tests down.
 ENV = {"OMPI_MCA_odls_base_sigkill_timeout": "0"}
 BASE = (INPUT / "poiseuille.nml").read_text()
+NUM = r"([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)"
 # The base scene runs 5 steps instead of t_end = 2000 s, so the valid runs below are instant.
 BASE = BASE.replace("t_end = 2000.0", "steps = 5")
 assert "steps = 5" in BASE
@@ -96,9 +100,17 @@ class Case:
     pieces: list[str] = field(default_factory=list)
     no_file: bool = False  # pass no scene file on the command line
     base: str | None = None  # a scene of input/ to start from instead of the base scene
+    whole: str | None = None  # the whole scene file (instead of an edit of a base scene)
 
 
 LBM_KEYS = "dx, tau, collision, s_e, s_eps, s_q"  # input/README.md, &lbm
+MAX_STEPS = 1000000000  # input/README.md: at most 10^9 time steps
+DT_MIN = "1.0e-12"  # input/README.md: 1e-12 s <= dt <= 1e6 s
+BASE_DT = (1.0 - 0.5) / 3.0 * 0.05**2 / (0.01 / 1.0)  # E3 for the base scene's tau, dx, nu
+# input/single.nml's disk driven at a constant velocity, without gravity
+PRESCRIBED = ["--set", "particles.motion=prescribed", "--set", "particles.gravity=0"]
+# the fastest a prescribed particle may move on single.nml's lattice: mach_limit c_s dx/dt
+SPEED = f"speed up to {0.3 * math.sqrt(1 / 3) * 0.01 / 5e-5:.3f}"
 TAU_RANGE = "0.5 < tau <= 10"
 
 CASES = {
@@ -137,7 +149,7 @@ CASES = {
     "steps-not-an-integer": Case(
         "steps = 5",
         "steps = 1.5",
-        pieces=["{file}:{line}:", "&run", "steps = 1.5", "not an integer", "steps >= 0"],
+        pieces=["{file}:{line}:", "&run", "steps = 1.5", "not an integer", "0 <= steps"],
     ),
     "overwrite-not-a-logical": Case(
         args=["--set", "output.overwrite=maybe"],
@@ -253,6 +265,109 @@ CASES = {
             "allowed:",
         ],
     ),
+    # ---- derived quantities: every key in range, what follows from them is not ----
+    # nu = 0.01/1e-320 overflows: dt = 0 and NaN everywhere (the run used to go on)
+    "density-1e-320-gives-infinite-nu": Case(
+        "density = 1.0",
+        "density = 1e-320",
+        pieces=["{file}:{line}:", "&fluid", "density = 1.0e-320", "nu =", "finite nu > 0"],
+    ),
+    # nu = 1e-320 (subnormal): dt = Infinity
+    "viscosity-1e-320-gives-infinite-dt": Case(
+        "viscosity = 0.01",
+        "viscosity = 1e-320",
+        pieces=["{file}:{line}:", "&fluid", "viscosity = 1.0e-320", "finite nu > 0"],
+    ),
+    # dt = 4e-312 s with steps = 5 ran and exited 0; a dt that small wants a LARGER dx (dt ~
+    # dx^2), so advice to refine dx would be the wrong knob
+    "viscosity-1e308-gives-subnormal-dt": Case(
+        "viscosity = 0.01",
+        "viscosity = 1e308",
+        pieces=[
+            "{file}:{line}:",
+            "viscosity = 1.0e308",
+            "time step dt",
+            f"allowed: {DT_MIN} s <= dt",
+            "make lbm.dx larger",
+        ],
+    ),
+    # t_end = 1e9 s at dt = 0.25 dx^2/nu... gives more steps than the bound; the message names
+    # the keys that set the count (t_end, and dx and tau through dt)
+    "t-end-beyond-the-step-bound": Case(
+        "steps = 5",
+        "t_end = 1e9",
+        pieces=[
+            "{file}:{line}:",
+            "&run t_end = 1000000000.0",
+            f"{round(1e9 / BASE_DT)}",
+            f"at most {MAX_STEPS}",
+            "raise lbm.tau",
+            "make lbm.dx larger",
+        ],
+    ),
+    "steps-beyond-the-bound": Case(
+        "steps = 5",
+        f"steps = {2 * MAX_STEPS}",
+        pieces=["{file}:{line}:", f"steps = {2 * MAX_STEPS}", f"steps <= {MAX_STEPS}"],
+    ),
+    # ---- scene files without any group: they used to run the 500 x 1250 default scene ----
+    "empty-file": Case(
+        whole="",
+        pieces=["{file}: is empty", "namelist group", "&domain", "--print-defaults"],
+    ),
+    "comments-only": Case(
+        whole="! a scene\n\n   ! that was never written\n",
+        pieces=["{file}: holds only comments", "namelist group", "&lbm"],
+    ),
+    "keys-outside-any-group": Case(
+        whole="tau = 0.7\n",
+        pieces=["{file}:1:", "'tau'", "outside a group", "&name"],
+    ),
+    # ---- memory: checked before anything is allocated ----
+    # gamma = 100 puts 25 spacings across D_2 = 0.002 cm: dx = 2/25000 cm, 25000 x 100000 cells
+    # (hundreds of GiB); the run used to grow until it was killed
+    "pair-gamma-100-needs-more-memory-than-the-node": Case(
+        args=["--set", "pair.gamma=100"],
+        base="case0_box.nml",
+        pieces=[
+            "{file}",
+            "25000 x 100000 cells",
+            "GiB per rank",
+            "lattices",
+            "MemAvailable",
+            "lbm.cells_per_diameter",
+            "run.memory_limit",
+        ],
+    ),
+    # the base scene's 20 x 6 cells need far more than 1 KiB
+    "memory-limit-below-the-need": Case(
+        args=["--set", "run.memory_limit=1e-6"],
+        pieces=["{file}", "GiB per rank", "20 x 6 cells", "allowed (run.memory_limit)"],
+    ),
+    # ---- prescribed particles: a constant velocity makes the path known at input ----
+    # input/single.nml: D = 0.25 cm at x = 1 of a 2 cm channel; at u = -0.5 cm/s the surface
+    # reaches x = 0 at (1 - 0.125)/0.5 = 1.75 s and the centre ends at x = -0.1 cm at t = 2.2 s
+    "prescribed-particle-through-the-side-wall": Case(
+        args=PRESCRIBED + ["--set", "particles.u=-0.5", "--set", "run.t_end=2.2"],
+        base="single.nml",
+        pieces=["{file}", "'prescribed'", "u(1) = -0.5", "wall at x = 0", "t = 1.75 s", "2.2 s"],
+    ),
+    # a fixed disk (D = 0.2) 2 cm below: contact at (2 - (0.25 + 0.2)/2)/2 = 0.8875 s
+    "prescribed-particle-into-a-fixed-one": Case(
+        args=PRESCRIBED
+        + ["--set", "particles.v(1)=-2", "--set", "run.t_end=1.0", "--set", "particles.count=2"]
+        + ["--set", "particles.motion(2)=fixed", "--set", "particles.diameter(2)=0.2"]
+        + ["--set", "particles.x(2)=1.0", "--set", "particles.y(2)=2.0"],
+        base="single.nml",
+        pieces=["{file}", "runs into particle 2", "'fixed'", "t = 0.8875 s"],
+    ),
+    # 50 cm/s is Mach 50 dt/dx / c_s = 0.433 on single.nml's lattice (dx = 0.01, dt = 5e-5 s):
+    # the guard would stop the run naming a node; the input check names the particle
+    "prescribed-particle-faster-than-the-mach-limit": Case(
+        args=PRESCRIBED + ["--set", "particles.v=-50", "--set", "run.t_end=0.001"],
+        base="single.nml",
+        pieces=["{file}", "particle 1 moves at 50.0 cm/s", "mach_limit = 0.3", SPEED, "lower u(1)"],
+    ),
 }
 
 
@@ -264,6 +379,8 @@ def test_bad_input_stops_every_rank_with_one_clear_message_and_no_output(
     message per rank, exit status 0, a job that never ends (timeout), output written before the
     input was validated."""
     scene, line = write_scene(tmp_path, case.old, case.new, case.base)
+    if case.whole is not None:
+        scene.write_text(case.whole)
     outdir = tmp_path / "out"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -424,17 +541,24 @@ def test_unwritable_output_directory(tmp_path: Path) -> None:
     assert blocker.read_text() == "not a directory\n"
 
 
-def test_existing_output_is_never_overwritten_without_output_overwrite(tmp_path: Path) -> None:
-    """A second run into the same directory fails and leaves the first run's .h5, .xdmf and .log
-    byte for byte the same; so does a bad input even with output.overwrite = .true. (validation
-    comes before any write). The last run, valid and with output.overwrite = .true., succeeds:
-    the control that the directory itself was writable all along."""
+def earlier_run(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """The base scene run once (valid, exit 0) into tmp_path/out from tmp_path/cwd: returns
+    the scene, the output directory and the working directory."""
     scene, _ = write_scene(tmp_path)
     outdir = tmp_path / "out"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
     first = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
     assert first.returncode == 0, first.stderr
+    return scene, outdir, cwd
+
+
+def test_existing_output_is_never_overwritten_without_output_overwrite(tmp_path: Path) -> None:
+    """A second run into the same directory fails and leaves the first run's .h5, .xdmf and .log
+    byte for byte the same; so does a bad input even with output.overwrite = .true. (validation
+    comes before any write). The last run, valid and with output.overwrite = .true., succeeds:
+    the control that the directory itself was writable all along."""
+    scene, outdir, cwd = earlier_run(tmp_path)
     assert (outdir / "bad.h5").is_file()
     before = tree_digest(outdir)
 
@@ -466,12 +590,7 @@ def test_any_file_of_an_earlier_run_stops_a_new_one(tmp_path: Path) -> None:
     """Not only the .h5: an output directory holding another file of an earlier run of the
     same scene (here only its log, the .h5 removed) stops the run with one message naming the
     file and the ways out; the log stays byte for byte. output.overwrite lets the run go."""
-    scene, _ = write_scene(tmp_path)
-    outdir = tmp_path / "out"
-    cwd = tmp_path / "cwd"
-    cwd.mkdir()
-    first = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
-    assert first.returncode == 0, first.stderr
+    scene, outdir, cwd = earlier_run(tmp_path)
     (outdir / "bad.h5").unlink()
     before = tree_digest(outdir)
     again = dkt([str(scene), "--set", f"output.dir={outdir}"], cwd)
@@ -561,3 +680,156 @@ def test_check_prints_the_derived_lattice_and_writes_nothing(
     models = next(ln for ln in out.splitlines() if ln.startswith("models:"))
     assert ("BGK" if collision == "bgk" else "MRT") in models, models
     assert "velocity" in models and "outflow" in models and "parabolic" in models, models
+
+
+def test_check_allocates_no_lattice(tmp_path: Path) -> None:
+    """--check on a 5000 x 1500 lattice (two lattices of 1.08 GB) validates and reports without
+    allocating them: the largest resident size of the process stays below a quarter of one
+    lattice. Catches a --check that sets up (allocates and fills) the lattices before it
+    prints anything. Run on one rank without mpiexec, so that the process measured is dktlbm."""
+    scene, _ = write_scene(tmp_path)
+    dx = 0.0002
+    nx, ny = round(1.0 / dx), round(0.3 / dx)  # the base scene's 1.0 x 0.3 cm channel
+    lattice_bytes = 9 * 8 * nx * ny
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    proc = subprocess.run(
+        [str(EXE), str(scene), "--check", "--set", f"lbm.dx={dx}"]
+        + ["--set", f"output.dir={tmp_path / 'out'}"],
+        cwd=cwd,
+        env={**os.environ, **mpi_env(), **ENV},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert f"cells {nx} x {ny}" in proc.stdout, proc.stdout
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024  # KiB on Linux
+    assert before * 1024 < lattice_bytes / 4, "an earlier child was already this large"
+    assert peak < lattice_bytes / 4, f"--check reached {peak / 2**20:.0f} MiB resident"
+    assert list(cwd.iterdir()) == []
+
+
+def test_check_refuses_what_the_run_would_refuse_an_earlier_runs_files(tmp_path: Path) -> None:
+    """After a run into output.dir, --check into the same directory exits non-zero with the
+    run's message (naming the file and output.overwrite) and leaves the files byte for byte;
+    with output.overwrite = .true. it passes. Catches a --check that returns 0 for a run that
+    will be refused (command A's preview used to be refused only when it ran)."""
+    scene, outdir, cwd = earlier_run(tmp_path)
+    before = tree_digest(outdir)
+    check = dkt([str(scene), "--check", "--set", f"output.dir={outdir}"], cwd)
+    assert check.returncode != 0, "--check passed a run that the run itself refuses"
+    lines = error_lines(check.stderr)
+    assert len(lines) == 1, check.stderr
+    assert str(outdir / "bad.h5") in lines[0] and "output.overwrite" in lines[0], lines[0]
+    assert tree_digest(outdir) == before
+    ok = dkt(
+        [str(scene), "--check", "--set", f"output.dir={outdir}"]
+        + ["--set", "output.overwrite=.true."],
+        cwd,
+    )
+    assert ok.returncode == 0, ok.stderr
+    assert tree_digest(outdir) == before
+
+
+def resolved_values(text: str) -> dict[str, str]:
+    """'key = value' of a --print-defaults listing, by 'group.key'."""
+    values, group = {}, ""
+    for line in text.splitlines():
+        if line.startswith("&"):
+            group = line[1:].strip()
+        m = re.match(r"\s+(\w+) = (.*?)\s+!", line)
+        if m:
+            values[f"{group}.{m.group(1)}"] = m.group(2)
+    return values
+
+
+def test_print_defaults_of_a_file_prints_its_resolved_values(tmp_path: Path) -> None:
+    """dktlbm FILE --print-defaults --set ... prints the file's values with the options applied
+    (the base scene's tau = 1.0, dx from --set), the defaults for keys it leaves out, and the
+    listing reads back as a scene; a bad FILE is refused like a run's. Catches the file and
+    --set being silently ignored (the defaults printed instead)."""
+    scene, _ = write_scene(tmp_path)
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    plain = dkt(["--print-defaults"], cwd, ranks=1)
+    assert plain.returncode == 0, plain.stderr
+    defaults = resolved_values(plain.stdout)
+    given = dkt([str(scene), "--print-defaults", "--set", "lbm.dx=0.025"], cwd, ranks=1)
+    assert given.returncode == 0, given.stderr
+    values = resolved_values(given.stdout)
+    assert values.keys() == defaults.keys()
+    assert values["lbm.tau"] == "1.0" != defaults["lbm.tau"]  # from the file (tau = 1.0)
+    assert values["lbm.dx"] == "0.025" != defaults["lbm.dx"]  # from --set
+    assert values["domain.height"] == "0.3" != defaults["domain.height"]
+    assert values["run.t_ref"] == defaults["run.t_ref"]  # not in the file
+    back = tmp_path / "back.nml"
+    back.write_text(given.stdout)
+    again = dkt([str(back), "--print-defaults"], cwd, ranks=1)
+    assert again.returncode == 0 and resolved_values(again.stdout) == values, again.stderr
+    empty = tmp_path / "empty.nml"
+    empty.write_text("")
+    bad = dkt([str(empty), "--print-defaults"], cwd, ranks=1)
+    assert bad.returncode != 0 and len(error_lines(bad.stderr)) == 1, bad.stderr
+    assert list(cwd.iterdir()) == []
+
+
+def test_a_prescribed_particle_leaving_the_window_stops_the_run_naming_it(
+    tmp_path: Path,
+) -> None:
+    """A path the input cannot check: in a moving window (which follows the free particle 1)
+    prescribed particle 2 sinks at 6 cm/s, faster than particle 1 settles, and passes the
+    window's lower end. The run stops (exit status 3, one message) naming particle 2, its
+    position, which lies on its straight path (x = 0.5, y = 4 - 6 t), and the time. Catches a
+    particle that leaves the lattice silently (the run used to go on, exit 0)."""
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    sets = {
+        "window.enabled": ".true.",
+        "window.below": "3",
+        "lbm.cells_per_diameter": "8",
+        "particles.count": "2",
+        "particles.x(1)": "1.4",
+        "particles.motion(2)": "prescribed",
+        "particles.diameter(2)": "0.25",
+        "particles.x(2)": "0.5",
+        "particles.y(2)": "4.0",
+        "particles.v(2)": "-6",
+        "run.progress_every": "0",
+        "output.dir": str(outdir),
+    }
+    args = [str(INPUT / "single.nml")]
+    for key, value in sets.items():
+        args += ["--set", f"{key}={value}"]
+    proc = run_args(args, RANKS, 120.0, cwd, ENV)
+    assert proc.returncode == 3, proc.stderr
+    lines = error_lines(proc.stderr)
+    assert len(lines) == 1, proc.stderr
+    msg = lines[0]
+    m = re.search(
+        rf"particle 2 \(motion = 'prescribed'\): its centre passed the lower end of the window "
+        rf"at \(x, y\) = \(\s*{NUM},\s*{NUM}\) cm, step (\d+) \(t =\s*{NUM} s\)",
+        msg,
+    )
+    assert m, msg
+    x, y, t = float(m.group(1)), float(m.group(2)), float(m.group(4))
+    assert t > 0.0
+    assert x == pytest.approx(0.5, abs=1e-5)
+    assert y == pytest.approx(4.0 - 6.0 * t, abs=1e-4)
+
+
+def test_readme_preview_has_an_output_dir_of_its_own() -> None:
+    """Command A's preview (README and tools/run.sh) sets an output.dir other than the main
+    run's runs/case1, so that running the preview first never makes the main run refuse an
+    existing output directory. Catches the preview losing its output.dir."""
+    for path in (ROOT / "README.md", ROOT / "tools" / "run.sh"):
+        text = re.sub(r"\\?\n[#\s]*", " ", path.read_text())
+        previews = re.findall(
+            r"tools/run\.sh input/case1\.nml 2 --set lbm\.cells_per_diameter"
+            r"=12[^`\n]*?output\.dir=(\S+?)[`\s]",
+            text,
+        )
+        assert previews, f"no preview command with an output.dir in {path}"
+        assert all(d.rstrip("/") not in ("runs/case1", "") for d in previews), previews

@@ -7,6 +7,7 @@ program test_config
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_config, only: config_t, lattice_params_t, cli_t, config_load, config_validate, &
+                        config_check_text, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
                         config_output_dir, MAX_PARTICLES
   implicit none
@@ -39,6 +40,7 @@ program test_config
   call test_nml_reals()
   call test_nml_overrides()
   call test_nml_errors()
+  call test_derived_and_text_errors()
 
   write (*, '(i0,a,i0,a)') n_pass, ' passed, ', n_fail, ' failed'
   if (n_fail > 0) error stop 1
@@ -593,8 +595,12 @@ contains
     call load_ok('a particle just clear of the wall', '&particles count = 1, x = 0.1001 /', cfg)
     call load_ok('only particles 1..count are checked', '&particles count = 1, y(2) = 1,'// &
                  ' x(3) = -5, diameter(4) = 0.001, motion(5) = ''fixed'', u(5) = 1 /', cfg)
+    ! (a run short enough that the path stays in the channel: 0.1 s moves it by (0.1, -0.2) cm)
     call load_ok('prescribed particles keep any velocity', '&particles count = 1,'// &
-                 ' motion = ''prescribed'', u = 1, v = -2, omega = 3 /', cfg)
+                 ' motion = ''prescribed'', u = 1, v = -2, omega = 3 / &run t_end = 0.1 /', cfg)
+    call load_ok('a prescribed path that passes a fixed particle', '&particles count = 2,'// &
+                 ' motion = ''prescribed'', ''fixed'', x = 0.5, 1.5, y = 4, 2, v = -2 /'// &
+                 ' &run t_end = 1.0 /', cfg)
     call load_ok('fixed particle at rest', '&particles count = 1, motion = ''fixed'' /', cfg)
   end subroutine test_particle_scenes_accept
 
@@ -636,6 +642,47 @@ contains
                      FILE, none, err, warnings)
     call check('with an error the warnings are empty', len(err) > 0 .and. len(warnings) == 0)
   end subroutine test_particle_warnings
+
+  !> Keys in range whose derived quantities are not (dt, nu, the step count, a prescribed
+  !! path over the run), and scene texts without any group. Each expected piece follows from
+  !! the edit: the defaults give dt = 8e-5 s and t_end = 1 s; a particle of diameter 0.2 at
+  !! x = 1 moving at u = -1 cm/s touches the wall at x = 0 after (1 - 0.1)/1 = 0.9 s; one at
+  !! y = 4 moving at v = -2 cm/s touches a fixed one at y = 2 after (2 - 0.2)/2 = 0.9 s.
+  subroutine test_derived_and_text_errors()
+    character(len=:), allocatable :: err
+    call expect_error('error: density 1e-320 gives an infinite nu', &
+                      '&fluid density = 1e-320 /', [character(len=40) :: 'input/test.nml:1:', &
+                                                    '&fluid', 'density = 1.0e-320', 'nu = ', &
+                                                    'about 1.0e318', 'finite nu > 0'])
+    call expect_error('error: viscosity 1e308 gives a subnormal dt', &
+                      '&fluid viscosity = 1e308 / &run steps = 5 /', &
+                      [character(len=40) :: 'input/test.nml:1:', 'viscosity = 1.0e308', &
+                       'time step dt', 'allowed: 1.0e-12 s <= dt', 'make lbm.dx larger'])
+    call expect_error('error: t_end beyond the step bound names t_end and the dt keys', &
+                      '&run t_end = 1e6 /', [character(len=40) :: 'input/test.nml:1:', &
+                                             '&run t_end = 1000000.0', 'at most 1000000000', &
+                                             'raise lbm.tau', 'make lbm.dx larger'])
+    call expect_error('error: steps beyond the bound', '&run steps = 2000000000 /', &
+                      [character(len=40) :: 'input/test.nml:1:', 'steps = 2000000000', &
+                       'steps <= 1000000000'])
+    call expect_error('error: a prescribed path through the side wall', &
+                      '&particles count = 1, motion = ''prescribed'', u = -1 /', &
+                      [character(len=40) :: 'input/test.nml:1:', 'motion(1) = ''prescribed''', &
+                       'u(1) = -1.0', 'side wall at x = 0', 't = 0.9 s', 'run ends at t = 1.0'])
+    call expect_error('error: a prescribed path into a fixed particle', &
+                      '&particles count = 2, motion = ''prescribed'', ''fixed'','// &
+                      ' y = 4, 2, v = -2 /', &
+                      [character(len=40) :: 'input/test.nml:1:', 'runs into particle 2', &
+                       '''fixed''', 't = 0.9 s'])
+    call config_check_text('', FILE, err)
+    call expect_parts('error: an empty scene file', err, &
+                      [character(len=40) :: FILE//': is empty', '&domain', '--print-defaults'])
+    call config_check_text('! a comment'//new_line('a')//'   '//new_line('a'), FILE, err)
+    call expect_parts('error: a scene file of comments only', err, &
+                      [character(len=40) :: FILE//': holds only comments', '&lbm'])
+    call config_check_text('! a comment'//new_line('a')//'&lbm /', FILE, err)
+    call check('a file with a group passes the text check', len(err) == 0)
+  end subroutine test_derived_and_text_errors
 
   subroutine test_particle_errors()
     character(len=*), parameter :: TWO = '&particles count = 2, x = 1, 1, y = 2, 3 '

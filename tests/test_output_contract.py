@@ -123,7 +123,9 @@ def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
     # the stored namelist is itself a valid scene of the same lattice (input/README.md)
     scene = tmp_path / f"{NAME}.nml"
     scene.write_text(nml)
-    check = run_args([str(scene), "--check"], 1, 60.0, tmp_path)
+    # (into a fresh output.dir: --check refuses the run's own directory, which holds its files)
+    fresh = f"output.dir={tmp_path / 'check'}"
+    check = run_args([str(scene), "--check", "--set", fresh], 1, 60.0, tmp_path)
     assert check.returncode == 0, check.stderr
     m = re.search(r"cells (\d+) x (\d+) = \d+, steps (\d+)", check.stdout)
     assert m and [int(g) for g in m.groups()] == [NX, NY, STEPS], check.stdout

@@ -6,9 +6,12 @@
 #   tools/run.sh [scene.nml] [ranks] [dktlbm options...]
 #
 # Defaults: input/case1.nml (the paper's Case 1) on 2 ranks. Further arguments go to dktlbm,
-# e.g. the preview  tools/run.sh input/case1.nml 2 --set lbm.cells_per_diameter=12
+# e.g. the preview, into a directory of its own so that it never blocks the main run:
+#   tools/run.sh input/case1.nml 2 --set lbm.cells_per_diameter=12 \
+#     --set output.dir=runs/case1_preview
 # The run's files go to output.dir of the scene (default runs/<scene name>, below the
-# repository root).
+# repository root). A directory that holds an earlier run of the scene is refused by the
+# --check below, before anything runs (output.overwrite=.true. or another output.dir).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -44,7 +47,8 @@ if mpirun --version 2>&1 | grep -Eq 'Open MPI|OpenRTE'; then
 fi
 # Show the scene relative to the root when it lies inside it (as in the README).
 case "$scene" in "$root"/*) scene=${scene#"$root"/} ;; esac
-# the run's HDF5 file, from the start-up summary of --check ('... into DIR/NAME.h5')
+# the run's HDF5 file, from the start-up summary of --check ('... into DIR/NAME.h5'); --check
+# also refuses what the run would (bad input, too little memory, an earlier run's files)
 h5=$("${launcher[@]}" build/dktlbm "$scene" "$@" --check | sed -n 's/.* into \(.*\.h5\)$/\1/p' |
   tail -n 1)
 "${launcher[@]}" build/dktlbm "$scene" "$@"
