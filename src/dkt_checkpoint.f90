@@ -137,7 +137,7 @@ contains
     type(io_file_t) :: pf
     integer :: ints(NINT), ne, nd
     integer(hsize_t) :: dims(3)
-    logical :: exists, any_bad
+    logical :: exists, any_bad, foreign
     real(wp) :: rr(2)
     real(wp), allocatable :: buf(:, :, :), ep(:, :)
     character(len=:), allocatable :: what, close_err
@@ -161,6 +161,7 @@ contains
     ints = 0
     rr = 0.0_wp
     call io_dataset_dims(pf, 'state_int', nd, dims)
+    foreign = nd == -1
     if (nd /= 1 .or. dims(1) /= NINT) then
       what = 'no /state_int of 9 entries'
     else
@@ -209,7 +210,9 @@ contains
     ! a problem seen on any rank is everyone's (the slabs read different rows)
     call MPI_Allreduce(len(what) > 0, any_bad, 1, MPI_LOGICAL, MPI_LOR, comm)
     if (any_bad .and. len(what) == 0) what = 'a damaged dataset on another rank'
-    if (len(what) > 0) then
+    if (foreign) then
+      err = 'restart file '''//path//''' is not a dktlbm checkpoint (no /state_int)'
+    else if (len(what) > 0) then
       err = 'restart file '''//path//''' is damaged: '//what//'; use an earlier checkpoint'
     else if (len(close_err) > 0) then
       err = 'restart file '''//path//''' is damaged: '//close_err//'; use an earlier checkpoint'

@@ -472,7 +472,8 @@ contains
     !> The scales and thresholds the run uses, as /run attributes, so that readers of the
     !! file need not repeat the program's defaults: t_ref (s), h_ref = g t_ref^2 (cm), gravity
     !! (cm/s^2), width (cm), rho_f (g/cm^3), mu (g/(cm s)); with particles d1 (cm, the larger
-    !! diameter of particles 1 and 2); with a pair the kissing thresholds in cm (kiss_enter,
+    !! diameter of particles 1 and 2); with a pair the diameters of particles 1 and 2 (cm,
+    !! diameter_1, diameter_2) and the kissing thresholds in cm (kiss_enter,
     !! kiss_release), in spacings (kiss_enter_cells, kiss_release_cells) and in D_1
     !! (kiss_enter_d1, kiss_release_d1).
     subroutine write_derived(sim)
@@ -489,6 +490,8 @@ contains
                                                       maxval(c%particles%diameter( &
                                                              1:min(2, c%particles%count))))
         if (sim%pair_on) then
+          call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
+          call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
           call kiss_thresholds(c, enter, release)
           call io_write_attribute(io, '/run', 'kiss_enter', enter*sim%lp%dx)
           call io_write_attribute(io, '/run', 'kiss_release', release*sim%lp%dx)
