@@ -35,8 +35,9 @@ contains
     stop status, quiet = .true.
   end subroutine fatal_all
 
-  !> Stop every rank for an error that one rank saw alone (a guard on its slab, a failed write):
-  !! that rank prints with its number and aborts the whole job, so no rank waits forever.
+  !> Stop every rank for an error that one rank saw alone (a failed HDF5 call or write on it):
+  !! that rank prints with its number and aborts the whole job, so no rank waits forever. The
+  !! output is not closed then; errors all ranks see stop through fatal_all after closing it.
   subroutine fatal_local(msg, code)
     character(len=*), intent(in) :: msg
     integer, intent(in), optional :: code
