@@ -5,7 +5,10 @@
     snap = read_field("runs/case1/case1.h5", "vorticity", time=1.5)   # nearest stored field
 
 Units are the file's: cm, g, s. The pair is particles 1 and 2; D_1 is the larger diameter.
-When the file has a /diagnostics group its series, thresholds, pattern and episodes are used
+The scales (t_ref, h_ref, gravity, fluid density and viscosity, D_1, the diameters of the pair)
+and the kissing thresholds are read from the attributes the program stores in /run; the
+defaults and rules below are only a fallback for files written before it stored them. When
+the file has a /diagnostics group its series, thresholds, pattern and episodes are used
 as written; otherwise (older files, scenes without a pair group) they are computed here from
 /particles with the same rules (docs/model.md §6):
 
@@ -18,6 +21,10 @@ two or more episodes 'repeated', one 'once', none 'never'.
 
 Every problem with an input file raises RunFileError, whose text is `<file>: <what>`; the
 scripts print it as `error: <file>: <what>` and exit with status 2.
+
+A run that stopped before its last step (/run attribute stop_reason: 'guard: ...', 'signal',
+'wall_limit', 'error: ...', or 'running' for a run killed or still going) is read all the
+same: open_run prints a warning that says why it stopped and that its series end early.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+# Fallbacks for run files written before the program stored its scales and thresholds in /run.
 # docs/model.md §6: t_ref = sqrt(H/g) with H = 18 cm, g = 980 cm/s^2
 DEFAULT_T_REF = 0.135526
 DEFAULT_H_REF = 18.0
@@ -218,6 +226,28 @@ class Run:
     mu: float  # g/(cm s)
     diagnostics: dict[str, Any] | None = None  # /diagnostics: attrs and datasets
     has_fields: bool = False
+    stop_reason: str = ""  # /run stop_reason; '' in files written before it was stored
+    run_attrs: dict[str, float] = field(default_factory=dict)  # numeric /run attributes
+
+    @property
+    def complete(self) -> bool:
+        """False when the run stopped before its end (a guard, a signal, the wall limit, an
+        error) or never closed its file; True for a finished run, an escape from the window
+        (the pair separated: the run's natural end), and older files that do not say."""
+        return self.stop_reason in ("", "finished", "window_escape")
+
+    def stop_note(self) -> str | None:
+        """Why the run stopped early and where its series end; None for a complete run."""
+        if self.complete:
+            return None
+        why = "it was killed or is still running (its file was not closed)" \
+            if self.stop_reason == "running" else f"stopped: {self.stop_reason}"
+        end = self.steps * self.dt if self.steps > 0 and math.isfinite(self.dt) else math.nan
+        upto = f"the series end at t = {fmt(float(self.t[-1]))} s" if self.t.size else \
+            "no series were written"
+        if math.isfinite(end):
+            upto += f" of {fmt(end)} s"
+        return f"{self.path}: the run ended early ({why}); {upto}, so they are incomplete"
 
     @property
     def tstar(self) -> np.ndarray:
@@ -255,7 +285,7 @@ def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
 
 
 def _diameters(nml: dict[str, dict[str, list[str]]], count: int,
-               diag: dict[str, Any] | None) -> np.ndarray:
+               diag: dict[str, Any] | None, stored: dict[str, float]) -> np.ndarray:
     d = np.full(count, math.nan)
     # &pair gamma > 0 writes particles 1 (D_1) and 2 (D_1/gamma): the namelist in /run may be
     # the input as given, before that expansion.
@@ -272,6 +302,10 @@ def _diameters(nml: dict[str, dict[str, list[str]]], count: int,
         if "d1" in a and "gamma" in a and _num(a["gamma"]) > 0:
             d1 = _num(a["d1"])
             d[0], d[1] = d1, d1 / _num(a["gamma"])
+    # the pair's diameters as the program used them (files since it stores them)
+    for k in range(min(count, 2)):
+        if f"diameter_{k + 1}" in stored:
+            d[k] = stored[f"diameter_{k + 1}"]
     return d
 
 
@@ -285,14 +319,32 @@ def open_run(path: str | Path, need_particles: int = 1) -> Run:
         if not isinstance(group, h5py.Group) or not isinstance(group.get("t"), h5py.Dataset):
             what = "not a dktlbm run file (no /particles group)"
             if "run" in h5 and group is None:
-                what = "the run has no particles (no /particles group)"
+                reason = stop_reason(h5)
+                if reason not in ("", "finished", "window_escape"):
+                    what = (f"the run stopped before it wrote any particle sample "
+                            f"(stop_reason: {reason})")
+                else:
+                    what = "the run has no particles (no /particles group)"
             raise RunFileError(path, what)
         try:
-            return _read_run(Path(path), h5, need_particles)
+            run = _read_run(Path(path), h5, need_particles)
         except RunFileError:
             raise
         except (KeyError, ValueError, TypeError, IndexError, OSError) as exc:
             raise RunFileError(path, f"not a readable dktlbm run file ({exc})") from None
+    note = run.stop_note()
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
+    return run
+
+
+def stop_reason(h5: Any) -> str:
+    """/run stop_reason of an open run file: 'finished', 'window_escape', 'signal',
+    'wall_limit', 'guard: ...', 'error: ...', 'running' (killed or still going); '' when the
+    file predates the attribute."""
+    if "run" not in h5 or "stop_reason" not in h5["run"].attrs:
+        return ""
+    return _text(h5["run"].attrs["stop_reason"])
 
 
 def _read_run(path: Path, h5: Any, need: int) -> Run:
@@ -319,6 +371,8 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
 
     run_attrs = h5["run"].attrs if "run" in h5 else {}
     nml = parse_namelist(_text(run_attrs["namelist"])) if "namelist" in run_attrs else {}
+    numbers = {k: _num(v) for k, v in run_attrs.items()
+               if np.asarray(v).dtype.kind in "fiu" and np.asarray(v).size == 1}
     dx = _num(run_attrs["dx"]) if "dx" in run_attrs else math.nan
     dt = _num(run_attrs["dt"]) if "dt" in run_attrs else math.nan
     steps = int(_num(run_attrs["steps"])) if "steps" in run_attrs else 0
@@ -328,6 +382,9 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
     a = diag["attrs"] if diag is not None else {}
 
     def scale(attr: str, group: str, key: str, default: float) -> float:
+        # as stored by the program; the namelist and the defaults only for older files
+        if attr in numbers:
+            return numbers[attr]
         if attr in a:
             return _num(a[attr])
         return nml_float(nml, group, key, default)
@@ -343,16 +400,18 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
         count=count,
         t=t,
         series={k: v[:, :count] for k, v in series.items()},
-        diameters=_diameters(nml, count, diag),
+        diameters=_diameters(nml, count, diag, numbers),
         window_offset=offset,
         width=width,
         t_ref=scale("t_ref", "run", "t_ref", DEFAULT_T_REF),
-        h_ref=_num(a["h_ref"]) if "h_ref" in a else DEFAULT_H_REF,
+        h_ref=numbers.get("h_ref", _num(a["h_ref"]) if "h_ref" in a else DEFAULT_H_REF),
         gravity=scale("gravity", "particles", "gravity", DEFAULT_GRAVITY),
-        rho_f=nml_float(nml, "fluid", "density", 1.0),
-        mu=nml_float(nml, "fluid", "viscosity", 0.01),
+        rho_f=scale("rho_f", "fluid", "density", 1.0),
+        mu=scale("mu", "fluid", "viscosity", 0.01),
         diagnostics=diag,
         has_fields="fields" in h5,
+        stop_reason=stop_reason(h5),
+        run_attrs=numbers,
     )
 
 
@@ -512,6 +571,14 @@ def _limits(run: Run, d1: float, limits: dict[str, float] | None,
             attrs: dict[str, Any] | None = None) -> Thresholds:
     """Thresholds from the run's settings (&diagnostics in its namelist, the spacing counts in
     /diagnostics) with `limits` (given by the user) taking precedence."""
+    stored = {k: run.run_attrs.get(f"kiss_{k}") for k in _default_limits()}
+    if all(v is not None for v in stored.values()):
+        # as the program used them (stored in /run)
+        base = {k: float(v) for k, v in stored.items() if v is not None}
+        given = {k: v for k, v in (limits or {}).items() if v is not None}
+        rule = "given on the command line" if given else "the run's settings"
+        return thresholds(run.dx, d1, rule=rule, **{**base, **given})
+    # older files: the namelist in /run, and the program's defaults for what it does not set
     base = {k: nml_float(run.namelist, "diagnostics", k, v) for k, v in _default_limits().items()}
     if base["enter_cells"] <= 0:
         # &diagnostics enter_cells = 0 means one spacing beyond the repulsion range (E10)
@@ -569,8 +636,10 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
         pattern = pattern_name(len(pairs))
         source = "computed from /diagnostics/dr with the given thresholds"
     else:
-        enter = _num(a["kiss_enter"]) if "kiss_enter" in a else math.nan
-        release = _num(a["kiss_release"]) if "kiss_release" in a else math.nan
+        stored = run.run_attrs
+        enter = _num(a["kiss_enter"]) if "kiss_enter" in a else stored.get("kiss_enter", math.nan)
+        release = _num(a["kiss_release"]) if "kiss_release" in a else stored.get(
+            "kiss_release", math.nan)
         if not (math.isfinite(enter) and math.isfinite(release)):
             lim = _limits(run, d1, None, a)
         else:
@@ -601,14 +670,18 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
 
 
 def run_status(path: str | Path) -> str:
-    """'finished' when `path` holds a finished run: /diagnostics has its `pattern`
-    attribute, or (a file without /diagnostics) /particles reaches the run's last step;
-    'missing' when there is no file; 'failed' otherwise (stopped, unreadable, or running)."""
+    """'finished' when `path` holds a finished run: /run stop_reason 'finished' or
+    'window_escape' (older files: /diagnostics has its `pattern` attribute, or /particles
+    reaches the run's last step); 'missing' when there is no file; 'failed' otherwise
+    (stopped early, unreadable, or running)."""
     p = Path(path)
     if not p.is_file():
         return "missing"
     try:
         with open_h5(p) as h5:
+            reason = stop_reason(h5)
+            if reason:
+                return "finished" if reason in ("finished", "window_escape") else "failed"
             if "diagnostics" in h5:
                 return "finished" if "pattern" in h5["diagnostics"].attrs else "failed"
             if "particles" not in h5 or "run" not in h5:

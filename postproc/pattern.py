@@ -4,10 +4,12 @@
 used, gamma = D_1/D_2 and D_h/D_1.
 
 A file with /diagnostics is reported as the program classified it. Giving any threshold
-option classifies the gap again here, the options not given keeping the defaults:
-enter = max(enter_cells dx, enter_d1 D_1) (defaults 2 and 0.05), release = max(release_cells
-dx, release_d1 D_1) (defaults 4 and 0.25). A file without /diagnostics is classified here from
-/particles with its own settings (or the defaults)."""
+option classifies the gap again here, the options not given keeping the run's own settings
+(stored in /run; for older files the defaults): enter = max(enter_cells dx, enter_d1 D_1)
+(defaults 2 and 0.05), release = max(release_cells dx, release_d1 D_1) (defaults 4 and 0.25).
+A file without /diagnostics is classified here from /particles with its own settings (or the
+defaults). A run that stopped early (a guard, a signal, the wall limit, an error) is classified
+up to where it stopped, and the report says so and why (JSON: stop_reason, complete)."""
 
 from __future__ import annotations
 
@@ -83,6 +85,10 @@ def report(pair: Pair) -> dict[str, Any]:
             for e in pair.episodes
         ],
         "t_end": float(pair.t[-1]) if pair.t.size else None,
+        # why the run ended ('' for files that predate it); a pattern of a run that stopped
+        # early covers only the part it computed
+        "stop_reason": pair.run.stop_reason,
+        "complete": pair.run.complete,
     }
 
 
@@ -108,6 +114,9 @@ def text(r: dict[str, Any]) -> str:
         f"  classification: {r['source']}; run ends at t = {_s(r['t_end'])} s, "
         f"t_r = {fmt(r['t_ref'])} s",
     ]
+    if not r["complete"]:
+        lines.append(f"  incomplete: the run stopped early ({r['stop_reason']}); the pattern "
+                     f"covers t <= {_s(r['t_end'])} s only")
     for k, e in enumerate(r["kissing"], 1):
         gap, gap_d1 = _s(e["min_gap"]), _s(e["min_gap_d1"], 3)
         lines.append(

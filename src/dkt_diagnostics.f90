@@ -1,6 +1,7 @@
 !> Run diagnostics and guards: a non-finite population or a Mach number above the limit stops
-!> the run with what, where, when, and what to change. For a pair of particles (docs/model.md §6):
-!> the gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
+!> the run (collectively, its output written and closed) with what, where, when, and what to
+!> change. For a pair of particles (docs/model.md §6): the
+!> gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
 !> the kissing episodes with the DKT pattern they make.
 !>
 !> A kissing episode starts when the surface gap D_r falls to `enter` or below and ends when it
@@ -9,11 +10,11 @@
 !> episodes, 'once' for one, 'never' for none.
 module dkt_diagnostics
   use ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
-  use mpi_f08, only: MPI_Allreduce, MPI_IN_PLACE, MPI_MAX
+  use mpi_f08, only: MPI_Allreduce, MPI_Bcast, MPI_IN_PLACE, MPI_MAX, MPI_MIN, MPI_INTEGER, &
+                     MPI_CHARACTER
   use dkt_kinds, only: wp, mpi_wp, cs2
   use dkt_domain, only: domain_t
   use dkt_fields, only: node_moments
-  use dkt_errors, only: fatal_local
   implicit none
   private
   public :: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, pair_diag_update, &
@@ -42,9 +43,12 @@ contains
     dx_advice = dx_knob
   end subroutine guard_set_advice
 
-  !> Check every node of the slab; stop all ranks on a non-finite value or |u|/c_s above
-  !! mach_limit. Returns the largest Mach number over all ranks (a collective call).
-  subroutine guard_check(dom, f, force, mach_limit, step, t, dx, y_offset, mach_max)
+  !> Check every node of the slab for a non-finite value or |u|/c_s above mach_limit.
+  !! Collective: every rank returns the largest Mach number over all ranks and the same
+  !! `failure`, '' when all is well, else what, where, when and what to change at the first
+  !! failing node of the lowest rank with the worst kind of failure (non-finite before Mach).
+  !! The caller stops the run, so that all ranks write their output and close it together.
+  subroutine guard_check(dom, f, force, mach_limit, step, t, dx, y_offset, mach_max, failure)
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: f(0:, 0:, 0:)
     real(wp), intent(in) :: force(2)      !! body force, lattice units
@@ -53,13 +57,17 @@ contains
     real(wp), intent(in) :: t, dx         !! time (s) and lattice spacing (cm), for the message
     real(wp), intent(in) :: y_offset      !! cm, y of the lattice's lower end (a moving window)
     real(wp), intent(out) :: mach_max     !! largest |u|/c_s on any rank
+    character(len=:), allocatable, intent(out) :: failure
+    integer, parameter :: OK = 0, TOO_FAST = 1, NON_FINITE = 2
     real(wp) :: rho, ux, uy, ma
-    integer :: x, j
+    integer :: x, j, kind, worst, root
     character(len=512) :: msg
 
     if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
     mach_max = 0.0_wp
-    do j = 1, dom%nyl
+    kind = OK
+    msg = ''
+    scan: do j = 1, dom%nyl
       do x = 1, dom%nx
         call node_moments(f(x, j, :), force, rho, ux, uy)
         if (.not. (all(ieee_is_finite(f(x, j, :))) .and. ieee_is_finite(ux) .and. &
@@ -68,21 +76,30 @@ contains
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &
             ', ', y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. The run became unstable: ', &
             'increase lbm.tau, '//dx_advice//' (smaller dt), or lower the velocity scale'
-          call fatal_local(trim(msg))
+          kind = NON_FINITE
+          exit scan
         end if
         ma = sqrt((ux*ux + uy*uy)/cs2)
-        if (ma > mach_limit) then
+        if (ma > mach_limit .and. kind == OK) then
           write (msg, '(a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') &
             'Mach number ', ma, ' above run.mach_limit = ', mach_limit, ' at step ', step, &
             ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, ', ', &
-            y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. Lower lbm.tau or '//dx_advice, &
-            ' (both shrink dt and the lattice velocity), or lower the flow speed'
-          call fatal_local(trim(msg))
+            y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. Lower lbm.tau or '//dx_advice//' ', &
+            '(both shrink dt and the lattice velocity), or lower the flow speed'
+          kind = TOO_FAST
         end if
         mach_max = max(mach_max, ma)
       end do
-    end do
+    end do scan
     call MPI_Allreduce(MPI_IN_PLACE, mach_max, 1, mpi_wp, MPI_MAX, dom%comm)
+    call MPI_Allreduce(kind, worst, 1, MPI_INTEGER, MPI_MAX, dom%comm)
+    failure = ''
+    if (worst == OK) return
+    ! the lowest rank with the worst failure sends its message to all
+    call MPI_Allreduce(merge(dom%rank, huge(0), kind == worst), root, 1, MPI_INTEGER, MPI_MIN, &
+                       dom%comm)
+    call MPI_Bcast(msg, len(msg), MPI_CHARACTER, root, dom%comm)
+    failure = trim(msg)
   end subroutine guard_check
 
   !> Start with no episode; the thresholds are in the units of the D_r given to the updates.

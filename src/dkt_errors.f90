@@ -4,6 +4,7 @@ module dkt_errors
   use iso_fortran_env, only: error_unit, output_unit
   use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Abort, MPI_Finalize, MPI_Initialized, &
                      MPI_Finalized
+  use dkt_log, only: log_record, log_close
   implicit none
   private
   public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME
@@ -28,12 +29,15 @@ contains
       write (error_unit, '(a)') 'dktlbm: error: '//msg
       flush (error_unit)
     end if
+    if (running) call log_record('error: '//msg)
+    call log_close()
     if (running) call MPI_Finalize()
     stop status, quiet = .true.
   end subroutine fatal_all
 
-  !> Stop every rank for an error that one rank saw alone (a guard on its slab, a failed write):
-  !! that rank prints with its number and aborts the whole job, so no rank waits forever.
+  !> Stop every rank for an error that one rank saw alone (a failed HDF5 call or write on it):
+  !! that rank prints with its number and aborts the whole job, so no rank waits forever. The
+  !! output is not closed then; errors all ranks see stop through fatal_all after closing it.
   subroutine fatal_local(msg, code)
     character(len=*), intent(in) :: msg
     integer, intent(in), optional :: code
@@ -44,6 +48,9 @@ contains
     flush (output_unit)
     write (error_unit, '(a,i0,a)') 'dktlbm: error [rank ', this_rank(running), ']: '//msg
     flush (error_unit)
+    ! the log file is rank 0's; the other ranks' errors are on standard error only
+    if (running) call log_record('error: '//msg)
+    call log_close()
     if (running) call MPI_Abort(MPI_COMM_WORLD, status)
     stop status, quiet = .true.
   end subroutine fatal_local
@@ -56,6 +63,7 @@ contains
       write (error_unit, '(a)') 'dktlbm: warning: '//msg
       flush (error_unit)
     end if
+    if (running) call log_record('warning: '//msg)
   end subroutine warn
 
   !> This process's rank in MPI_COMM_WORLD (0 when MPI is not running); running tells whether

@@ -1,11 +1,13 @@
 !> The run log: lines from rank 0 go to standard output and, once the output directory is
 !> known, also into <output.dir>/<name>.log (lines written before that are replayed there).
+!> Warnings and errors go to standard error (dkt_errors) and, through log_record, into the log
+!> file too, so that the log alone tells why a run stopped.
 module dkt_log
   use iso_fortran_env, only: output_unit
-  use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank
+  use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Initialized, MPI_Finalized
   implicit none
   private
-  public :: log_line, log_open, log_close
+  public :: log_line, log_record, log_open, log_close
 
   integer, save :: log_unit = -1
   !> whether the log file is open (newunit= gives negative unit numbers, so the unit cannot tell)
@@ -29,6 +31,25 @@ contains
       write (output_unit, '(a)') msg
       flush (output_unit)
     end if
+    call to_file(msg)
+  end subroutine log_line
+
+  !> Keep one line (rank 0's) for the log file only, not standard output: the warnings and
+  !! errors that dkt_errors prints to standard error.
+  subroutine log_record(msg)
+    character(len=*), intent(in) :: msg
+    logical :: up, down
+    ! errors can come before MPI_Init or after MPI_Finalize; no log file is open then
+    call MPI_Initialized(up)
+    call MPI_Finalized(down)
+    if (.not. up .or. down) return
+    if (.not. is_root()) return
+    call to_file(msg)
+  end subroutine log_record
+
+  !> One line into the log file, or kept until it is opened.
+  subroutine to_file(msg)
+    character(len=*), intent(in) :: msg
     if (log_is_open) then
       write (log_unit, '(a)') msg
       flush (log_unit)
@@ -36,7 +57,7 @@ contains
       if (.not. allocated(pending)) pending = ''
       pending = pending//msg//new_line('a')
     end if
-  end subroutine log_line
+  end subroutine to_file
 
   !> Open the log file on rank 0 and write the lines logged so far; `append` (a resumed run)
   !! continues an existing log. err is '' on success.
@@ -65,6 +86,7 @@ contains
     log_is_open = .true.
     if (allocated(pending)) then
       write (log_unit, '(a)', advance='no') pending
+      flush (log_unit)
       deallocate (pending)
     end if
   end subroutine log_open

@@ -76,6 +76,12 @@ module dkt_simulation
     integer :: step = 0
     integer :: samples = 0          !! samples of the /particles series written
     character(len=:), allocatable :: stopped_early !! why the run ended before its last step
+    !> why the run ended, stored as /run stop_reason when the output is closed: 'finished',
+    !! 'window_escape', 'signal', 'wall_limit', 'guard: <message>' or 'error: <message>'
+    character(len=:), allocatable :: stop_reason
+    integer :: fields_step = -1     !! the step of the last field snapshot written
+    integer :: series_step = -1     !! the step of the last /particles sample written
+    logical :: reported = .false.   !! the pair's pattern and episodes are written
     logical :: restarted = .false.  !! the run resumed from a checkpoint
     logical :: interrupted = .false. !! stopped on a signal or the wall limit, to be resumed
     character(len=:), allocatable :: restart_from !! the checkpoint it resumed from
@@ -343,15 +349,15 @@ contains
     character(len=512) :: msg
     integer :: k
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
-                         sim%dom%y0, chk, err)
+                         sim%dom%y0, merge(sim%parts%n, 0, sim%particles_on), chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
-        size(chk%particles, 2) /= merge(sim%parts%n, 0, sim%particles_on)) then
+        chk%np /= merge(sim%parts%n, 0, sim%particles_on)) then
       write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
         ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
-        ' cm, dt = ', chk%dt, ' s with ', size(chk%particles, 2), ' particles; the scene '// &
+        ' cm, dt = ', chk%dt, ' s with ', chk%np, ' particles; the scene '// &
         'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
         ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
         '--set options of the run that wrote it'
@@ -487,6 +493,7 @@ contains
     real(wp) :: pvalues(12), s(0:8)
     logical :: ok
 
+    sim%stop_reason = 'running'
     dir = config_output_dir(sim%cfg)
     err = ''
     if (sim%dom%rank == 0) call make_directories(dir, err)
@@ -510,6 +517,7 @@ contains
       if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
                                                                '_diagnostics.csv')
       if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
+      call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
       return
     end if
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
@@ -538,6 +546,10 @@ contains
     end if
     call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
                       compiler_version(), dkt_build_flags, pnames, pvalues)
+    call write_derived(sim)
+    ! replaced when the run ends; a file that still says 'running' is of a run that is going
+    ! on or was killed
+    call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
     if (sim%pair_on .and. sim%dom%rank == 0) then
       ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
       open (newunit=sim%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
@@ -548,6 +560,40 @@ contains
         'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
     end if
   contains
+    !> The scales and thresholds the run uses, as /run attributes, so that readers of the
+    !! file need not repeat the program's defaults: t_ref (s), h_ref = g t_ref^2 (cm), gravity
+    !! (cm/s^2), width (cm), rho_f (g/cm^3), mu (g/(cm s)); with particles d1 (cm, the larger
+    !! diameter of particles 1 and 2); with a pair the diameters of particles 1 and 2 (cm,
+    !! diameter_1, diameter_2) and the kissing thresholds in cm (kiss_enter,
+    !! kiss_release), in spacings (kiss_enter_cells, kiss_release_cells) and in D_1
+    !! (kiss_enter_d1, kiss_release_d1).
+    subroutine write_derived(sim)
+      type(simulation_t), intent(inout) :: sim
+      real(wp) :: enter, release
+      associate (c => sim%cfg, io => sim%io)
+        call io_write_attribute(io, '/run', 't_ref', c%run%t_ref)
+        call io_write_attribute(io, '/run', 'h_ref', c%particles%gravity*c%run%t_ref**2)
+        call io_write_attribute(io, '/run', 'gravity', c%particles%gravity)
+        call io_write_attribute(io, '/run', 'width', c%domain%width)
+        call io_write_attribute(io, '/run', 'rho_f', c%fluid%density)
+        call io_write_attribute(io, '/run', 'mu', c%fluid%viscosity)
+        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', &
+                                                      maxval(c%particles%diameter( &
+                                                             1:min(2, c%particles%count))))
+        if (sim%pair_on) then
+          call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
+          call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
+          call kiss_thresholds(c, enter, release)
+          call io_write_attribute(io, '/run', 'kiss_enter', enter*sim%lp%dx)
+          call io_write_attribute(io, '/run', 'kiss_release', release*sim%lp%dx)
+          call io_write_attribute(io, '/run', 'kiss_enter_cells', kiss_enter_cells(c))
+          call io_write_attribute(io, '/run', 'kiss_release_cells', c%diagnostics%release_cells)
+          call io_write_attribute(io, '/run', 'kiss_enter_d1', c%diagnostics%enter_d1)
+          call io_write_attribute(io, '/run', 'kiss_release_d1', c%diagnostics%release_d1)
+        end if
+      end associate
+    end subroutine write_derived
+
     !> Keep the header and the first `samples` rows of the CSV file, then append to it.
     subroutine reopen_csv(path)
       character(len=*), intent(in) :: path
@@ -613,7 +659,8 @@ contains
     real(wp) :: t, mach, t_start, t_last, y0, t_checkpoint
     logical :: last
     character(len=256) :: line
-    character(len=:), allocatable :: reason
+    character(len=:), allocatable :: reason, failure
+    logical :: ok
 
     nx = sim%dom%nx
     nyl = sim%dom%nyl
@@ -630,6 +677,7 @@ contains
       t_checkpoint = t_start
       last_progress = sim%step
       pending = .false.
+      failure = ''
       do n = first, lp%steps
         if (sim%particles_on) then
           call particle_step(sim, n)
@@ -655,8 +703,12 @@ contains
         if (sim%pair_on) call pair_sample(sim, n)
         last = n == lp%steps .or. len(sim%stopped_early) > 0
 
-        if (mod(n, cfg%run%guard_every) == 0 .or. last) &
-          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, mach)
+        ! a failed guard ends the loop on every rank at once; the output is written below
+        if (mod(n, cfg%run%guard_every) == 0 .or. last) then
+          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
+                           mach, failure)
+          if (len(failure) > 0) exit
+        end if
         if (lp%field_every > 0) then
           if (mod(n, lp%field_every) == 0 .and. .not. last) call write_fields(sim, n)
         end if
@@ -666,9 +718,11 @@ contains
         if (cfg%run%progress_every > 0) then
           if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
-            if (mod(n, cfg%run%guard_every) /= 0) &
-              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
-                               mach)
+            if (mod(n, cfg%run%guard_every) /= 0) then
+              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, &
+                               y0, mach, failure)
+              if (len(failure) > 0) exit
+            end if
             call progress(n, last_progress, t_last, t_start, mach)
           end if
         end if
@@ -689,8 +743,10 @@ contains
             reason = 'on signal '//trim(merge('SIGTERM', 'SIGUSR1', &
                                               signal_caught() == SIGTERM .or. &
                                               signal_caught() == 0))
+            sim%stop_reason = 'signal'
           else
             reason = 'at run.wall_limit'
+            sim%stop_reason = 'wall_limit'
           end if
           exit
         end if
@@ -713,25 +769,41 @@ contains
         call MPI_Iallreduce(flags_out, flags_in, 1, MPI_INTEGER, MPI_BOR, sim%dom%comm, request)
         pending = .true.
       end do
+      ! a guard stop leaves the flag reduction of the step before in flight
+      if (pending) call MPI_Wait(request, MPI_STATUS_IGNORE)
       n = sim%step
+      if (len(failure) > 0) then
+        ! every rank saw the same failure: write the last step's state (what went wrong is
+        ! in it), close the output, then stop with the message
+        sim%stop_reason = 'guard: '//failure
+        call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
+                      '; the output holds the run up to this step')
+        call close_output(sim)
+        call fatal_all(failure, EXIT_RUNTIME)
+      end if
       t = MPI_Wtime() - t_start
       write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
         real(lp%nx, wp)*real(lp%ny, wp)*real(n - first + 1, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
         ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', n - first + 1, ' steps in ', t, &
         ' s on ', sim%dom%nranks, ' ranks)'
+      call log_line(trim(line))
       if (sim%interrupted) then
-        call log_line(trim(line))
         call log_line('stopped '//reason//' after step '//itoa(n)//' of '//itoa(lp%steps)// &
                       '; checkpoint '//sim%checkpoints(size(sim%checkpoints))%s// &
                       ' written. Resume with:')
         call log_line('  '//resume_command(sim%checkpoints(size(sim%checkpoints))%s, &
                                            sim%dom%nranks))
+        ! the output up to this step; a resumed run cuts back what the checkpoint has not
+        call close_output(sim)
         return
       end if
-      call write_fields(sim, n)
-      if (sim%particles_on) call write_particles(sim, n)
-      call log_line(trim(line))
-      if (len(sim%stopped_early) > 0) call warn(sim%stopped_early)
+      sim%stop_reason = 'finished'
+      if (len(sim%stopped_early) > 0) then
+        sim%stop_reason = 'window_escape'
+        call warn(sim%stopped_early)
+      end if
+      if (sim%fields_step /= n) call write_fields(sim, n)
+      if (sim%particles_on .and. sim%series_step /= n) call write_particles(sim, n)
       if (sim%pair_on) call pair_report(sim)
       ! a checkpoint at the last step lets the run be extended (a larger run.t_end); the final
       ! sample counts only when it is on the series schedule, as in a longer run
@@ -740,8 +812,16 @@ contains
           call write_checkpoint(sim, merge(1, 0, sim%particles_on .and. &
                                            mod(n, lp%series_every) /= 0))
       end if
-      if (sim%dom%rank == 0) call write_marker(config_output_dir(cfg)//'/'//cfg%name// &
+      call close_output(sim)
+      ok = .true.
+      if (sim%dom%rank == 0) ok = write_marker(config_output_dir(cfg)//'/'//cfg%name// &
                                                '.finished', itoa(n))
+      call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+      if (.not. ok) call fatal_all('cannot write the marker file '''// &
+                                   config_output_dir(cfg)//'/'//cfg%name//'.finished'''// &
+                                   ': the run finished and its output is complete, but '// &
+                                   'batch scripts that wait for this file will not see it; '// &
+                                   'check that output.dir is writable', EXIT_RUNTIME)
     end associate
   contains
     subroutine progress(n, last, t_last, t_start, mach)
@@ -754,7 +834,8 @@ contains
       now = MPI_Wtime()
       mlups = real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - last, wp)/ &
               max(now - t_last, 1.0e-9_wp)/1.0e6_wp
-      eta = (now - t_start)/real(n, wp)*real(sim%lp%steps - n, wp)
+      ! the time per step of this process (a resumed run started at step first - 1)
+      eta = (now - t_start)/real(n - first + 1, wp)*real(sim%lp%steps - n, wp)
       h = int(eta)/3600
       m = mod(int(eta), 3600)/60
       s = mod(int(eta), 60)
@@ -776,6 +857,7 @@ contains
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: dir, path, err, before
     integer :: k
+    logical :: ok
     dir = config_output_dir(sim%cfg)
     path = checkpoint_name(dir, sim%cfg%name, sim%step)
     chk%step = sim%step
@@ -807,34 +889,69 @@ contains
       if (allocated(sim%checkpoints)) then
         if (size(sim%checkpoints) > 0) before = sim%checkpoints(size(sim%checkpoints))%s
       end if
-      call fatal_all(err//'. The last checkpoint written is '//before)
+      call simulation_fail(sim, err//'. The last checkpoint written is '//before)
     end if
     if (.not. allocated(sim%checkpoints)) allocate (sim%checkpoints(0))
     sim%checkpoints = [sim%checkpoints, path_t(path)]
-    if (sim%dom%rank == 0) then
-      call write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
-      do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
-        call remove_file(sim%checkpoints(1)%s)
-        sim%checkpoints = sim%checkpoints(2:)
-      end do
-    else
-      do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
-        sim%checkpoints = sim%checkpoints(2:)
-      end do
-    end if
+    ok = .true.
+    if (sim%dom%rank == 0) ok = write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! batch scripts resume from the checkpoint the marker names: a stale one would lose steps
+    if (.not. ok) call simulation_fail(sim, 'cannot write the marker file '''//dir//'/'// &
+                                       sim%cfg%name//'.checkpoint'' naming the checkpoint '// &
+                                       path//'; check that output.dir is writable')
+    do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
+      if (sim%dom%rank == 0) call remove_file(sim%checkpoints(1)%s)
+      sim%checkpoints = sim%checkpoints(2:)
+    end do
     call log_line('checkpoint '//path)
   end subroutine write_checkpoint
 
-  !> A one-line text file (rank-local), for batch scripts: replaced atomically.
-  subroutine write_marker(path, text)
+  !> A one-line text file (rank-local), for batch scripts: replaced atomically. False when it
+  !! could not be written (the caller stops the run: the scripts would act on a stale marker).
+  logical function write_marker(path, text) result(ok)
     character(len=*), intent(in) :: path, text
     integer :: u, ios
+    ok = .false.
     open (newunit=u, file=path//'.tmp', status='replace', action='write', iostat=ios)
     if (ios /= 0) return
-    write (u, '(a)') text
-    close (u)
-    if (.not. rename_file(path//'.tmp', path)) return
-  end subroutine write_marker
+    write (u, '(a)', iostat=ios) text
+    if (ios /= 0) then
+      close (u, status='delete', iostat=ios)
+      return
+    end if
+    close (u, iostat=ios)
+    if (ios /= 0) return
+    ok = rename_file(path//'.tmp', path)
+    if (.not. ok) call remove_file(path//'.tmp')
+  end function write_marker
+
+  !> Stop the run on an error all ranks detected together after the output was opened: the
+  !! output is completed up to the current step and closed with stop_reason 'error: <msg>',
+  !! then every rank exits with EXIT_RUNTIME and rank 0 prints `msg`.
+  subroutine simulation_fail(sim, msg)
+    type(simulation_t), intent(inout) :: sim
+    character(len=*), intent(in) :: msg
+    sim%stop_reason = 'error: '//msg
+    call close_output(sim)
+    call fatal_all(msg, EXIT_RUNTIME)
+  end subroutine simulation_fail
+
+  !> Complete the output of the current step (the fields and the particle sample unless they
+  !! are written, the pair's report), store why the run ended as /run stop_reason and close the
+  !! run file and the CSV file. Collective; nothing happens once the output is closed.
+  subroutine close_output(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (.not. sim%output_open) return
+    if (sim%fields_step /= sim%step) call write_fields(sim, sim%step)
+    if (sim%particles_on .and. sim%series_step /= sim%step) call write_particles(sim, sim%step)
+    if (sim%pair_on .and. .not. sim%reported) call pair_report(sim)
+    call io_write_attribute(sim%io, '/run', 'stop_reason', sim%stop_reason)
+    call io_close(sim%io)
+    sim%output_open = .false.
+    if (sim%csv_open) close (sim%csv_unit)
+    sim%csv_open = .false.
+  end subroutine close_output
 
   !> The command that resumes this run from `checkpoint`: this process's arguments with
   !! --restart replaced, under mpirun with the same rank count.
@@ -1012,6 +1129,7 @@ contains
     end do
     if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
     sim%samples = sim%samples + 1
+    sim%series_step = n
     call io_write_series(sim%io, 'particles', ['t'], [n*dt])
     call io_write_table(sim%io, 'particles', series_names, v)
     if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])
@@ -1045,6 +1163,8 @@ contains
       write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
         re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
       write (sim%csv_unit, '(a)') trim(row)
+      ! kept on disk row by row: a rank that aborts the job must not take the series with it
+      flush (sim%csv_unit)
     end if
   end subroutine write_pair
 
@@ -1059,6 +1179,7 @@ contains
     integer :: k
     dx = sim%lp%dx
     pattern = pair_pattern(sim%pair)
+    sim%reported = .true.
     associate (cp => sim%cfg%particles, e => sim%pair)
       d = cp%diameter(1:2)
       gamma = maxval(d)/minval(d)
@@ -1081,7 +1202,7 @@ contains
       call io_write_attribute(sim%io, '/diagnostics', 'gravity', cp%gravity)
       call io_write_attribute(sim%io, '/diagnostics', 'width', sim%cfg%domain%width)
       call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
-                              merge(1, 0, len(sim%stopped_early) > 0))
+                              merge(0, 1, sim%stop_reason == 'finished'))
       do k = 1, e%n
         call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
                              [e%t_start(k), e%t_end(k), e%gap_min(k)*dx])
@@ -1121,6 +1242,7 @@ contains
       fld(:, :, 4) = fld(:, :, 4)/lp%dt
       y0 = 0.0_wp
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
+      sim%fields_step = n
       if (sim%particles_on) then
         call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
         call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)

@@ -10,3 +10,8 @@ dkt_add_pytest(NAME cli_bad_input FILE tests/test_bad_input.py LABELS mpi PROCES
 dkt_add_pytest(NAME cli_guards FILE tests/test_guards.py LABELS mpi PROCESSORS 2 TIMEOUT 120)
 dkt_add_pytest(NAME cli_output_contract FILE tests/test_output_contract.py LABELS regression
   PROCESSORS 2 TIMEOUT 120)
+# A run that stops early (guard, signal, wall limit, failed marker write) keeps its output up to
+# the stop with /run stop_reason; damaged checkpoints are refused; postproc says why a run
+# ended early. Runs of a few seconds each on 2 ranks.
+dkt_add_pytest(NAME restart_stops FILE tests/test_stops.py LABELS mpi regression PROCESSORS 2
+  TIMEOUT 600)

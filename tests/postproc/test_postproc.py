@@ -164,6 +164,46 @@ def test_scales_come_from_diagnostics_else_the_namelist(tmp_path: Path) -> None:
     assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((3.0, 0.15, 970.0, 17.5))
 
 
+def test_run_attributes_are_read_and_an_early_stop_is_reported(tmp_path: Path) -> None:
+    """Files since the program stores its scales and thresholds in /run: the reader takes them
+    from there (values here differ from the namelist and the defaults, so a reader that
+    recomputes them fails), and reports a run that stopped early: run_status 'failed' even
+    though its series look complete, a warning with the reason, and pattern.py's
+    'incomplete:' line (JSON stop_reason, complete); 'finished' is reported as finished."""
+    f = tmp_path / "stored.h5"
+    syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1), t_ref=0.2, fields=False)
+
+    def store(reason: str) -> None:
+        with h5py.File(f, "r+") as h5:
+            a = h5["run"].attrs
+            for key, value in (("t_ref", 0.3), ("rho_f", 1.2), ("mu", 0.02),
+                               ("diameter_1", 0.2), ("diameter_2", 0.1),
+                               ("kiss_enter_cells", 3.0), ("kiss_enter_d1", 0.05),
+                               ("kiss_release_cells", 6.0), ("kiss_release_d1", 0.25)):
+                a[key] = float(value)
+            a["stop_reason"] = np.bytes_(reason.encode())
+
+    store("finished")
+    r = dktread.open_run(f)
+    assert (r.t_ref, r.rho_f, r.mu) == pytest.approx((0.3, 1.2, 0.02))
+    lim = dktread.pair_of(r).limits
+    assert (lim.enter, lim.release) == pytest.approx((3.0 * syn.DX, 6.0 * syn.DX))
+    assert r.complete and r.stop_note() is None
+    assert dktread.run_status(f) == "finished"
+
+    for reason, says in (("signal", "stopped: signal"),
+                         ("running", "killed or is still running")):
+        store(reason)
+        assert dktread.run_status(f) == "failed"
+        proc = script("pattern", f)
+        assert proc.returncode == 0, proc.stderr
+        assert f"incomplete: the run stopped early ({reason})" in proc.stdout
+        assert "warning:" in proc.stderr and "ended early" in proc.stderr, proc.stderr
+        assert says in proc.stderr, proc.stderr
+        r = json.loads(script("pattern", f, "--json").stdout)
+        assert r["stop_reason"] == reason and r["complete"] is False
+
+
 # ---------------------------------------------------------------- pattern.py
 
 
