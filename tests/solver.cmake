@@ -5,8 +5,13 @@ dkt_add_pytest(NAME analytic_flows FILE tests/test_flows.py LABELS regression PR
   TIMEOUT 600)
 dkt_add_pytest(NAME decomposition_bitwise FILE tests/test_decomposition.py LABELS mpi
   PROCESSORS 3 TIMEOUT 600)
+if(DKTLBM_SANITIZE)
+  # Sanitized, the particle tests that exercise every particle routine on small lattices (links,
+  # contact, refill, owners across slabs); the benchmark-resolution validations run optimised.
+  set(_dkt_particles_args -k "head_on or mass_is_conserved or bitwise_identical or stiff")
+endif()
 dkt_add_pytest(NAME particles FILE tests/test_particles.py LABELS regression mpi PROCESSORS 3
-  TIMEOUT 1500)
+  TIMEOUT 1500 ARGS ${_dkt_particles_args})
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
 if(DKTLBM_SANITIZE)
   # Under AddressSanitizer (about 20x slower, and 4 ranks on 2 cores wait on each other) the
@@ -16,3 +21,5 @@ if(DKTLBM_SANITIZE)
 endif()
 dkt_add_pytest(NAME rank_matrix FILE tests/test_rank_matrix.py LABELS mpi PROCESSORS 4
   TIMEOUT 1200 ARGS ${_dkt_matrix_args})
+dkt_add_pytest(NAME sweep_ranks FILE tests/test_sweep_ranks.py LABELS mpi PROCESSORS 2
+  TIMEOUT 1500)

@@ -37,11 +37,13 @@ RANKS = (1, 2, 3, 4)
 # spacing inside that band, so the centre crosses the face and back with every shift.
 WINDOW = ["lbm.cells_per_diameter=6", "run.steps=300", "output.field_interval=0.07"]
 CASES: dict[str, dict] = {
-    # 300 rows split evenly on 1-4 ranks; the lowest centre sits on the 2- and 4-rank faces
-    "window_even_rows": {
+    # 300 rows split evenly on 1-4 ranks, 121 columns; the 2- and 4-rank faces in the band
+    "window_even_rows_odd_nx": {
         "nml": "case1.nml",
-        "sets": WINDOW + ["window.below=12.5416667", "window.above=12.4583333"],
+        "sets": WINDOW
+        + ["window.below=12.5416667", "window.above=12.4583333", "domain.width=2.0166667"],
         "rows": "even",
+        "nx": "odd",
         "window": True,
         "crosses": (2, 4),
     },
