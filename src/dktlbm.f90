@@ -9,8 +9,8 @@ program dktlbm
                         config_load, derive_lattice, config_to_namelist, print_help, &
                         config_check_text
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
-                            simulation_open_output, simulation_run, simulation_finish, &
-                            simulation_restore, simulation_check_outputs
+                            simulation_run, simulation_finish, simulation_restore
+  use dkt_output, only: output_open, output_check_existing
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -53,9 +53,9 @@ program dktlbm
   if (len(cli%restart) > 0 .and. .not. cli%check) call simulation_restore(sim, cli%restart)
   call simulation_summary(sim)
   if (cli%check) then
-    if (len(cli%restart) == 0) call simulation_check_outputs(sim)
+    if (len(cli%restart) == 0) call output_check_existing(sim)
   else
-    call simulation_open_output(sim)
+    call output_open(sim)
     call simulation_run(sim)
   end if
   call simulation_finish(sim)
