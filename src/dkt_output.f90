@@ -15,13 +15,15 @@ module dkt_output
   use dkt_io, only: io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open
-  use dkt_filesystem, only: make_directories, remove_file, path_exists
+  use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker
+  use dkt_registry, only: itoa
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
   implicit none
   private
   public :: output_open, output_check_existing, output_fields, output_particles, &
-            output_pair_report, output_close, output_fail
+            output_pair_report, output_close, output_fail, output_final, output_scheduled, &
+            output_mark_finished
 
   !> output fields; the particle index field only in a scene with particles
   character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
@@ -209,15 +211,51 @@ contains
     call fatal_all(msg, EXIT_RUNTIME)
   end subroutine output_fail
 
+  !> The output of the run's last step: the fields and the particle sample unless the
+  !! schedule wrote them, and the pair's report.
+  subroutine output_final(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (sim%fields_step /= sim%step) call output_fields(sim, sim%step)
+    if (sim%particles_on .and. sim%series_step /= sim%step) call output_particles(sim, sim%step)
+    if (sim%pair_on .and. .not. sim%reported) call output_pair_report(sim)
+  end subroutine output_final
+
+  !> The fields and the particle sample that fall on step n by output.field_interval and
+  !! output.series_interval (the last step's are written by output_final).
+  subroutine output_scheduled(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    if (sim%lp%field_every > 0) then
+      if (mod(n, sim%lp%field_every) == 0) call output_fields(sim, n)
+    end if
+    if (sim%particles_on .and. sim%lp%series_every > 0) then
+      if (mod(n, sim%lp%series_every) == 0) call output_particles(sim, n)
+    end if
+  end subroutine output_scheduled
+
+  !> The marker <name>.finished holding the last step, for batch scripts that wait for it.
+  !! Written after the output is closed: a run whose marker is there has its output complete.
+  subroutine output_mark_finished(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=:), allocatable :: path
+    logical :: ok
+    path = config_output_dir(sim%cfg)//'/'//sim%cfg%name//'.finished'
+    ok = .true.
+    if (sim%dom%rank == 0) ok = write_marker(path, itoa(sim%step))
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (.not. ok) call fatal_all('cannot write the marker file '''//path//''': the run '// &
+                                 'finished and its output is complete, but batch scripts '// &
+                                 'that wait for this file will not see it; check that '// &
+                                 'output.dir is writable', EXIT_RUNTIME)
+  end subroutine output_mark_finished
+
   !> Complete the output of the current step (the fields and the particle sample unless they
   !! are written, the pair's report), store why the run ended as /run stop_reason and close the
   !! run file and the CSV file. Collective; nothing happens once the output is closed.
   subroutine output_close(sim)
     type(simulation_t), intent(inout) :: sim
     if (.not. sim%output_open) return
-    if (sim%fields_step /= sim%step) call output_fields(sim, sim%step)
-    if (sim%particles_on .and. sim%series_step /= sim%step) call output_particles(sim, sim%step)
-    if (sim%pair_on .and. .not. sim%reported) call output_pair_report(sim)
+    call output_final(sim)
     call io_write_attribute(sim%io, '/run', 'stop_reason', sim%stop_reason)
     call io_close(sim%io)
     sim%output_open = .false.

@@ -8,8 +8,9 @@ program dktlbm
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, derive_lattice, config_to_namelist, print_help, &
                         config_check_text
-  use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
-                            simulation_run, simulation_finish, simulation_restore
+  use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
+  use dkt_report, only: report_summary
+  use dkt_checkpoint_policy, only: checkpoint_resume
   use dkt_output, only: output_open, output_check_existing
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
@@ -50,8 +51,8 @@ program dktlbm
   ! --check sets up all but the lattices (the memory check included), reports and refuses
   ! what the run would refuse
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
-  if (len(cli%restart) > 0 .and. .not. cli%check) call simulation_restore(sim, cli%restart)
-  call simulation_summary(sim)
+  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
+  call report_summary(sim)
   if (cli%check) then
     if (len(cli%restart) == 0) call output_check_existing(sim)
   else
