@@ -394,12 +394,15 @@ contains
   !! message naming file (and line), group, key, value and what is allowed; '' if valid.
   !! `warnings`: what a valid configuration may get wrong (e.g. a coarsely resolved particle),
   !! one message a line, in the same form; '' when there is none or when `err` is set.
-  subroutine config_load(cfg, text, file, overrides, err, warnings)
+  !! `lp`: the lattice parameters of the valid configuration, derived here so that a start
+  !! validates its input once (derive_lattice validates a configuration changed in code).
+  subroutine config_load(cfg, text, file, overrides, err, warnings, lp)
     type(config_t), intent(out), target :: cfg !! intent(out): every component starts at default
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable, intent(out), optional :: warnings
+    type(lattice_params_t), intent(out), optional :: lp
     character(len=:), allocatable :: found
     type(registry_t) :: reg
     integer :: j
@@ -425,6 +428,7 @@ contains
     call validate(cfg, reg, err, found)
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found
+    if (len(err) == 0 .and. present(lp)) lp = lattice_from(cfg)
   end subroutine config_load
 
   !> Validate a configuration built or changed in code ('' if valid); `warnings` as in

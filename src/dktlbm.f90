@@ -6,7 +6,7 @@ program dktlbm
                      MPI_INTEGER, MPI_CHARACTER
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
-                        config_load, derive_lattice, config_to_namelist, print_help, &
+                        config_load, config_to_namelist, print_help, &
                         config_check_text
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
   use dkt_report, only: report_summary
@@ -36,7 +36,8 @@ program dktlbm
   call read_input(cli%nml_file, text)
   call config_check_text(text, cli%nml_file, err)
   if (len(err) > 0) call fatal_all(err)
-  call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings)
+  ! validates the input (each key, then the rules that join keys) once and derives the lattice
+  call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings, lp)
   if (len(err) > 0) call fatal_all(err)
   if (cli%print_defaults) then
     ! the file's values with the --set options applied, as a namelist that reads back
@@ -44,8 +45,6 @@ program dktlbm
     call MPI_Finalize()
     stop
   end if
-  call derive_lattice(cfg, lp, err)
-  if (len(err) > 0) call fatal_all(err)
   call warn_lines(warnings)
 
   ! --check sets up all but the lattices (the memory check included), reports and refuses
