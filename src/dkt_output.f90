@@ -6,7 +6,8 @@ module dkt_output
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, cs2
   use dkt_errors, only: fatal_all, fatal_local, EXIT_RUNTIME
-  use dkt_config, only: config_output_dir, config_to_namelist, kiss_thresholds, kiss_enter_cells
+  use dkt_config, only: config_output_dir, config_to_namelist, kiss_thresholds, kiss_enter_cells, &
+                        pair_d1
   use dkt_mrt, only: collision_describe
   use dkt_fields, only: macroscopic, vorticity
   use dkt_particles, only: particles_solid_field
@@ -129,9 +130,7 @@ contains
         call io_write_attribute(io, '/run', 'width', c%domain%width)
         call io_write_attribute(io, '/run', 'rho_f', c%fluid%density)
         call io_write_attribute(io, '/run', 'mu', c%fluid%viscosity)
-        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', &
-                                                      maxval(c%particles%diameter( &
-                                                             1:min(2, c%particles%count))))
+        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', pair_d1(c))
         if (sim%pair_on) then
           call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
           call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
@@ -351,7 +350,7 @@ contains
                               kiss_enter_cells(sim%cfg))
       call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
                               sim%cfg%diagnostics%release_cells)
-      call io_write_attribute(sim%io, '/diagnostics', 'd1', maxval(d))
+      call io_write_attribute(sim%io, '/diagnostics', 'd1', pair_d1(sim%cfg))
       call io_write_attribute(sim%io, '/diagnostics', 'gamma', gamma)
       call io_write_attribute(sim%io, '/diagnostics', 'dh', dh)
       call io_write_attribute(sim%io, '/diagnostics', 't_ref', sim%cfg%run%t_ref)

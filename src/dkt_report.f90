@@ -30,7 +30,7 @@ contains
     type(simulation_t), intent(in) :: sim
     character(len=512) :: line
     character(len=256) :: particles, window
-    real(wp) :: s(0:8), mem(3), d1
+    real(wp) :: s(0:8), mem(3)
     integer :: k
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
@@ -73,7 +73,6 @@ contains
       end if
       window = 'window: none'
       if (sim%window_on) then
-        d1 = maxval(cfg%particles%diameter(1:cfg%particles%count))
         write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
       end if

@@ -6,7 +6,8 @@ module dkt_simulation
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
-  use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob
+  use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
+                        largest_diameter
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_init, stream_collide
   use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
@@ -70,7 +71,7 @@ contains
     min_rows = MIN_SLAB_ROWS
     if (sim%particles_on) then
       ! a slab holds at least the largest particle plus its interpolation stencil
-      min_rows = max(min_rows, ceiling(maxval(cfg%particles%diameter(1:cfg%particles%count)) &
+      min_rows = max(min_rows, ceiling(largest_diameter(cfg) &
                                        /lp%dx) + 4)
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
@@ -91,7 +92,7 @@ contains
     call guard_set_advice(dx_knob(cfg))
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
-      associate (d1 => maxval(cfg%particles%diameter(1:cfg%particles%count))/lp%dx)
+      associate (d1 => largest_diameter(cfg)/lp%dx)
         call window_init(sim%win, window_bottom(cfg), cfg%window%below*d1, cfg%window%margin*d1)
       end associate
     end if
