@@ -17,7 +17,7 @@ module dkt_config
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
-  public :: dx_knob
+  public :: dx_knob, pair_d1, largest_diameter
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -394,12 +394,15 @@ contains
   !! message naming file (and line), group, key, value and what is allowed; '' if valid.
   !! `warnings`: what a valid configuration may get wrong (e.g. a coarsely resolved particle),
   !! one message a line, in the same form; '' when there is none or when `err` is set.
-  subroutine config_load(cfg, text, file, overrides, err, warnings)
+  !! `lp`: the lattice parameters of the valid configuration, derived here so that a start
+  !! validates its input once (derive_lattice validates a configuration changed in code).
+  subroutine config_load(cfg, text, file, overrides, err, warnings, lp)
     type(config_t), intent(out), target :: cfg !! intent(out): every component starts at default
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable, intent(out), optional :: warnings
+    type(lattice_params_t), intent(out), optional :: lp
     character(len=:), allocatable :: found
     type(registry_t) :: reg
     integer :: j
@@ -425,6 +428,7 @@ contains
     call validate(cfg, reg, err, found)
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found
+    if (len(err) == 0 .and. present(lp)) lp = lattice_from(cfg)
   end subroutine config_load
 
   !> Validate a configuration built or changed in code ('' if valid); `warnings` as in
@@ -498,7 +502,7 @@ contains
                 'free particle; allowed: a scene with free particles (&particles or &pair)'
           return
         end if
-        d1 = maxval(p%diameter(1:p%count))
+        d1 = largest_diameter(c)
         c%domain%height = real(max(3, nint((c%window%below + c%window%above)*d1/c%lbm%dx)), wp) &
                           *c%lbm%dx
         c%domain%lower = 'velocity'
@@ -510,6 +514,21 @@ contains
     end associate
   end subroutine expand
 
+  !> D_1 (cm), the pair's larger diameter: the larger of particles 1 and 2 (particle 1 when it
+  !! is alone). The scale of the kissing thresholds, of D_r/D_1 and of /run d1; `c` has
+  !! particles. The one definition every place reads (in spacings: pair_d1(c)/c%lbm%dx).
+  pure real(wp) function pair_d1(c) result(d1)
+    type(config_t), intent(in) :: c
+    d1 = maxval(c%particles%diameter(1:min(2, c%particles%count)))
+  end function pair_d1
+
+  !> The largest diameter of all particles (cm): what a window (window.below, window.above in
+  !! these) and a slab must hold; `c` has particles.
+  pure real(wp) function largest_diameter(c) result(d)
+    type(config_t), intent(in) :: c
+    d = maxval(c%particles%diameter(1:c%particles%count))
+  end function largest_diameter
+
   !> y (cm, absolute) of the lower end of the window at t = 0: window%below D_1 under the
   !! lowest free particle's centre. Particle positions stay absolute; node rows are counted
   !! from here.
@@ -517,7 +536,7 @@ contains
     type(config_t), intent(in) :: c
     associate (p => c%particles)
       y = minval(p%y(1:p%count), mask=p%motion(1:p%count) == 'free') - &
-          c%window%below*maxval(p%diameter(1:p%count))
+          c%window%below*largest_diameter(c)
     end associate
   end function window_bottom
 
@@ -536,7 +555,7 @@ contains
     type(config_t), intent(in) :: c
     real(wp), intent(out) :: enter, release
     real(wp) :: d1
-    d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
+    d1 = pair_d1(c)/c%lbm%dx
     enter = max(kiss_enter_cells(c), c%diagnostics%enter_d1*d1)
     release = max(c%diagnostics%release_cells, c%diagnostics%release_d1*d1)
   end subroutine kiss_thresholds
@@ -1110,7 +1129,7 @@ contains
       real(wp) :: y_lo, y_hi, top, d1, need
       integer :: k
       associate (p => c%particles, win => c%window)
-        d1 = maxval(p%diameter(1:p%count))
+        d1 = largest_diameter(c)
         y_lo = window_bottom(c)
         y_hi = y_lo + c%domain%height
         do k = 1, p%count
@@ -1133,7 +1152,7 @@ contains
     !> The episode thresholds of &diagnostics (in spacings) leave a hysteresis: release > enter.
     subroutine check_thresholds()
       real(wp) :: d1, enter, release
-      d1 = maxval(c%particles%diameter(1:2))/c%lbm%dx
+      d1 = pair_d1(c)/c%lbm%dx
       call kiss_thresholds(c, enter, release)
       associate (g => c%diagnostics)
         if (release <= enter) &
@@ -1155,10 +1174,10 @@ contains
       associate (p => c%particles)
         if (any(p%motion(1:2) /= 'free')) return
         gap = hypot(p%x(1) - p%x(2), p%y(1) - p%y(2)) - 0.5_wp*(p%diameter(1) + p%diameter(2))
-        u_g = sqrt(0.5_wp*pi*maxval(p%diameter(1:2))* &
+        u_g = sqrt(0.5_wp*pi*pair_d1(c)* &
                    abs(maxval(p%density(1:2))/c%fluid%density - 1.0_wp)*p%gravity)
         if (u_g <= 0.0_wp) return
-        t_need = gap/(0.1_wp*u_g) + 5.0_wp*maxval(p%diameter(1:2))/u_g
+        t_need = gap/(0.1_wp*u_g) + 5.0_wp*pair_d1(c)/u_g
         t_run = lp%steps*lp%dt
         if (t_run >= t_need) return
         if (c%run%steps == 0) t_run = c%run%t_end ! as typed, not steps x dt

@@ -6,7 +6,7 @@ module dkt_filesystem
   use iso_c_binding, only: c_char, c_int, c_null_char
   implicit none
   private
-  public :: make_directories, path_exists, rename_file, remove_file
+  public :: make_directories, path_exists, rename_file, remove_file, write_marker
 
   interface
     integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
@@ -75,5 +75,24 @@ contains
     character(len=*), intent(in) :: path
     inquire (file=trim(path)//'/.', exist=is_directory)
   end function is_directory
+
+  !> A one-line text file (rank-local), for batch scripts: replaced atomically. False when it
+  !! could not be written (the caller stops the run: the scripts would act on a stale marker).
+  logical function write_marker(path, text) result(ok)
+    character(len=*), intent(in) :: path, text
+    integer :: u, ios
+    ok = .false.
+    open (newunit=u, file=path//'.tmp', status='replace', action='write', iostat=ios)
+    if (ios /= 0) return
+    write (u, '(a)', iostat=ios) text
+    if (ios /= 0) then
+      close (u, status='delete', iostat=ios)
+      return
+    end if
+    close (u, iostat=ios)
+    if (ios /= 0) return
+    ok = rename_file(path//'.tmp', path)
+    if (.not. ok) call remove_file(path//'.tmp')
+  end function write_marker
 
 end module dkt_filesystem

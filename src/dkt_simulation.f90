@@ -1,92 +1,38 @@
-!> A flow simulation on MPI slabs: set-up from the configuration, the time loop, output.
-!> The time loop (simulation_run) reads like docs/model.md §1–2: exchange, boundary ghosts, fused
-!> stream–collide, open ends, guards, output.
+!> A flow simulation on MPI slabs: set-up from the configuration and the time loop.
+!> The time loop (simulation_run) reads like docs/model.md §1–2: stream-collide with the
+!> boundaries, the particles and the window, the guards, then output, progress and checkpoints,
+!> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
 module dkt_simulation
-  use mpi_f08, only: MPI_Comm, MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Comm_size, &
-                     MPI_Iallreduce, MPI_Wait, MPI_Request, MPI_STATUS_IGNORE, MPI_INTEGER, &
-                     MPI_BOR, MPI_Allreduce, MPI_MAX, MPI_Comm_split_type, &
-                     MPI_COMM_TYPE_SHARED, MPI_INFO_NULL, MPI_Comm_free, MPI_IN_PLACE
-  use iso_fortran_env, only: compiler_version
-  use dkt_kinds, only: wp, i8, pi, cs2, mpi_wp
-  use dkt_errors, only: fatal_all, fatal_local, warn, EXIT_RUNTIME
-  use dkt_config, only: config_t, lattice_params_t, config_output_dir, window_bottom, &
-                        config_to_namelist, kiss_thresholds, kiss_enter_cells, &
-                        velocity_scale_source, dx_knob
+  use mpi_f08, only: MPI_Comm
+  use dkt_kinds, only: wp, pi, cs2
+  use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
+  use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
+                        largest_diameter
   use dkt_lattice, only: equilibrium
-  use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide
-  use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
-                        MIN_SLAB_ROWS
-  use dkt_boundary, only: boundary_t, boundary_init, fill_local_ghosts, fill_halo_ghosts, &
+  use dkt_mrt, only: collision_init, stream_collide
+  use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
+  use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
-  use dkt_fields, only: macroscopic, vorticity
-  use dkt_particles, only: particles_t, particles_init, particles_find_links, particles_bounce, &
+  use dkt_particles, only: particles_init, particles_find_links, particles_bounce, &
                            particles_interior, particles_reduce_forces, particles_move, &
-                           particles_solid_field, particles_stable_substeps, MOTION_FREE, &
-                           MOTION_FIXED, &
+                           particles_stable_substeps, MOTION_FREE, MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
-  use dkt_diagnostics, only: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, &
-                             pair_diag_update, pair_pattern, pair_gaps, drag_coefficient
-  use dkt_window, only: window_t, window_init, window_offset, window_follow, window_escaped
-  use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
-                            NSTATE
-  use dkt_signals, only: signals_install, signal_caught, SIGTERM
-  use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute, io_reopen
-  use dkt_log, only: log_line, log_open, log_close
-  use dkt_filesystem, only: make_directories, rename_file, remove_file, path_exists
-  use dkt_registry, only: itoa, fmt_real
-  use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
+  use dkt_diagnostics, only: guard_check, guard_set_advice, pair_diag_init, pair_diag_update, &
+                             pair_gaps
+  use dkt_window, only: window_init, window_offset, window_follow, window_escaped
+  use dkt_log, only: log_line, log_close
+  use dkt_memory, only: check_memory
+  use dkt_io, only: io_close
+  use dkt_registry, only: itoa
+  use dkt_run_state, only: simulation_t
+  use dkt_output, only: output_fields, output_particles, output_close, output_final, &
+                        output_scheduled, output_mark_finished
+  use dkt_report, only: progress_t, report_start, report_progress, report_performance
+  use dkt_checkpoint_policy, only: checkpoint_clock_t, checkpoint_start, checkpoint_due, &
+                                   checkpoint_finish, checkpoint_final, checkpoint_stop_message
   implicit none
   private
-  public :: simulation_t, simulation_setup, simulation_summary, simulation_open_output, &
-            simulation_run, simulation_finish, simulation_restore, simulation_check_outputs
-
-  !> output fields; the particle index field only in a scene with particles
-  character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
-                                                   'vorticity', 'pressure ', 'particle ']
-  !> the /particles series besides t, one column per particle
-  character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
-                                                    'omega ', 'fx    ', 'fy    ', 'torque']
-
-  real(wp), parameter :: GIB = 2.0_wp**30, MIB = 2.0_wp**20
-
-  type :: path_t
-    character(len=:), allocatable :: s
-  end type path_t
-
-  type :: simulation_t
-    type(config_t) :: cfg
-    type(lattice_params_t) :: lp
-    type(domain_t) :: dom
-    type(boundary_t) :: bc
-    type(collision_t) :: coll
-    real(wp), pointer, contiguous :: f(:, :, :) => null()      !! post-collision f*(t)
-    real(wp), pointer, contiguous :: f_next(:, :, :) => null() !! f*(t + dt), written by the sweep
-    type(particles_t) :: parts      !! allocated only when the scene has particles
-    logical :: particles_on = .false.
-    logical :: particles_move = .false. !! some particle is free or prescribed
-    type(window_t) :: win           !! used only when the scene asks for a window
-    logical :: window_on = .false.
-    type(pair_diag_t) :: pair       !! particles 1 and 2, when the scene has two or more
-    logical :: pair_on = .false.
-    type(io_t) :: io
-    logical :: output_open = .false.
-    integer :: csv_unit = 0         !! the diagnostics CSV file (rank 0, when the pair is on)
-    logical :: csv_open = .false.
-    integer :: step = 0
-    integer :: samples = 0          !! samples of the /particles series written
-    character(len=:), allocatable :: stopped_early !! why the run ended before its last step
-    !> why the run ended, stored as /run stop_reason when the output is closed: 'finished',
-    !! 'window_escape', 'signal', 'wall_limit', 'guard: <message>' or 'error: <message>'
-    character(len=:), allocatable :: stop_reason
-    integer :: fields_step = -1     !! the step of the last field snapshot written
-    integer :: series_step = -1     !! the step of the last /particles sample written
-    logical :: reported = .false.   !! the pair's pattern and episodes are written
-    logical :: restarted = .false.  !! the run resumed from a checkpoint
-    logical :: interrupted = .false. !! stopped on a signal or the wall limit, to be resumed
-    character(len=:), allocatable :: restart_from !! the checkpoint it resumed from
-    type(path_t), allocatable :: checkpoints(:)  !! written by this run (and the one resumed)
-  end type simulation_t
+  public :: simulation_t, simulation_setup, simulation_run, simulation_finish
 
 contains
 
@@ -125,12 +71,12 @@ contains
     min_rows = MIN_SLAB_ROWS
     if (sim%particles_on) then
       ! a slab holds at least the largest particle plus its interpolation stencil
-      min_rows = max(min_rows, ceiling(maxval(cfg%particles%diameter(1:cfg%particles%count)) &
+      min_rows = max(min_rows, ceiling(largest_diameter(cfg) &
                                        /lp%dx) + 4)
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
-    call check_memory(sim)
+    call check_memory(sim%cfg, sim%lp, sim%dom)
     with_lattices = .true.
     if (present(lattices)) with_lattices = lattices
     call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
@@ -146,7 +92,7 @@ contains
     call guard_set_advice(dx_knob(cfg))
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
-      associate (d1 => maxval(cfg%particles%diameter(1:cfg%particles%count))/lp%dx)
+      associate (d1 => largest_diameter(cfg)/lp%dx)
         call window_init(sim%win, window_bottom(cfg), cfg%window%below*d1, cfg%window%margin*d1)
       end associate
     end if
@@ -158,99 +104,6 @@ contains
     end if
     sim%stopped_early = ''
   end subroutine simulation_setup
-
-  !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
-  !! memory check: (1) the two lattices f and f_next, 9 doubles per padded node (nxp columns,
-  !! nyl rows and two halo rows); (2) the particles: per-row force sums (3 doubles per row and
-  !! particle) and the boundary links, at most 8 per surface node and about pi d + 8 surface
-  !! nodes per particle of d spacings (28 bytes a link); (3) the output: the field buffer of
-  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
-  pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
-    type(config_t), intent(in) :: cfg
-    type(lattice_params_t), intent(in) :: lp
-    integer, intent(in) :: nxp, nyl
-    real(wp) :: bytes(3)
-    real(wp) :: d_cells
-    integer :: n
-    bytes(1) = 2.0_wp*9.0_wp*8.0_wp*real(nxp, wp)*real(nyl + 2, wp)
-    n = cfg%particles%count
-    bytes(2) = 0.0_wp
-    if (n > 0) then
-      d_cells = maxval(cfg%particles%diameter(1:n))/lp%dx
-      bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
-    end if
-    bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp)
-  end function rank_memory
-
-  !> Stop every rank before the lattices are allocated when the ranks of one node would need
-  !! more than it gives: run.memory_limit GiB, or (0) MemAvailable of /proc/meminfo on rank 0's
-  !! node. A node holds at most the largest count of ranks sharing one node; each rank is
-  !! counted with the largest slab. Without /proc/meminfo and with no limit, nothing is checked.
-  subroutine check_memory(sim)
-    type(simulation_t), intent(inout) :: sim
-    type(MPI_Comm) :: node
-    real(wp) :: bytes(3), need, avail, limit
-    integer :: node_ranks
-    character(len=:), allocatable :: source
-    character(len=160) :: msg
-    bytes = rank_memory(sim%cfg, sim%lp, sim%dom%nxp, sim%dom%nyl)
-    call MPI_Allreduce(MPI_IN_PLACE, bytes, 3, mpi_wp, MPI_MAX, sim%dom%comm)
-    call MPI_Comm_split_type(sim%dom%comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, node)
-    call MPI_Comm_size(node, node_ranks)
-    call MPI_Comm_free(node)
-    call MPI_Allreduce(MPI_IN_PLACE, node_ranks, 1, MPI_INTEGER, MPI_MAX, sim%dom%comm)
-    avail = -1.0_wp
-    if (sim%dom%rank == 0) avail = mem_available()
-    call MPI_Bcast(avail, 1, mpi_wp, 0, sim%dom%comm)
-    if (sim%cfg%run%memory_limit > 0.0_wp) then
-      limit = sim%cfg%run%memory_limit*GIB
-      source = 'run.memory_limit'
-    else
-      limit = avail
-      source = 'MemAvailable in /proc/meminfo'
-    end if
-    need = real(node_ranks, wp)*sum(bytes)
-    if (limit < 0.0_wp .or. need <= limit) return
-    write (msg, '(a,i0,a,i0,a,i0,a)') ' for ', sim%lp%nx, ' x ', sim%lp%ny, &
-      ' cells, times ', node_ranks, ' ranks on a node = '
-    call fatal_all(trim(sim%cfg%file)//': the run needs '//fixed2(sum(bytes)/GIB)// &
-                   ' GiB per rank (lattices '//fixed2(bytes(1)/GIB)//' GiB, particle arrays '// &
-                   fixed2(bytes(2)/GIB)//' GiB, output buffers '//fixed2(bytes(3)/GIB)// &
-                   ' GiB)'//trim(msg)//' '//fixed2(need/GIB)//' GiB, more than the '// &
-                   fixed2(limit/GIB)//' GiB allowed ('//source//'); use fewer '// &
-                   'cells: a larger lbm.dx, a smaller lbm.cells_per_diameter (it sets dx '// &
-                   'from the smallest particle; with &pair a smaller gamma) or a smaller '// &
-                   '&domain; or spread the ranks over more nodes; or set run.memory_limit '// &
-                   '(GiB) to what the run may really use')
-  end subroutine check_memory
-
-  !> x rounded to two decimals, as text ('0.05', '335.32')
-  function fixed2(x) result(s)
-    real(wp), intent(in) :: x
-    character(len=:), allocatable :: s
-    s = fmt_real(anint(x*100.0_wp)/100.0_wp)
-  end function fixed2
-
-  !> MemAvailable of /proc/meminfo in bytes; -1 where it cannot be read.
-  function mem_available() result(bytes)
-    real(wp) :: bytes
-    character(len=256) :: line
-    integer :: u, ios
-    real(wp) :: kib
-    bytes = -1.0_wp
-    open (newunit=u, file='/proc/meminfo', status='old', action='read', iostat=ios)
-    if (ios /= 0) return
-    do
-      read (u, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      if (index(line, 'MemAvailable:') == 1) then
-        read (line(14:), *, iostat=ios) kib
-        if (ios == 0) bytes = kib*1024.0_wp
-        exit
-      end if
-    end do
-    close (u)
-  end function mem_available
 
   !> The particles of the scene in lattice units (docs/model.md §3–4), their first boundary links
   !! and the fluid inside them set to their velocity.
@@ -338,364 +191,31 @@ contains
     end select
   end subroutine initialise
 
-  !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
-  !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
-  !! another lattice or time step, or with another number of particles, stops every rank.
-  subroutine simulation_restore(sim, path)
-    type(simulation_t), intent(inout) :: sim
-    character(len=*), intent(in) :: path
-    type(checkpoint_t) :: chk
-    character(len=:), allocatable :: err
-    character(len=512) :: msg
-    integer :: k
-    call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
-                         sim%dom%y0, merge(sim%parts%n, 0, sim%particles_on), chk, err)
-    if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
-    if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
-        abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
-        abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
-        chk%np /= merge(sim%parts%n, 0, sim%particles_on)) then
-      write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
-        ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
-        ' cm, dt = ', chk%dt, ' s with ', chk%np, ' particles; the scene '// &
-        'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
-        ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
-        '--set options of the run that wrote it'
-      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
-    end if
-    if (chk%step > sim%lp%steps) then
-      write (msg, '(a,i0,a,i0,a)') ': the checkpoint is at step ', chk%step, &
-        ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
-      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
-    end if
-    sim%step = chk%step
-    sim%samples = chk%samples
-    sim%win%shift = chk%shift
-    do k = 1, size(chk%particles, 2)
-      associate (p => sim%parts%p(k), v => chk%particles(:, k))
-        p%x = v(1); p%y = v(2); p%u = v(3); p%v = v(4); p%omega = v(5)
-        p%fx = v(6); p%fy = v(7); p%torque = v(8); p%cx = v(9); p%cy = v(10)
-      end associate
-    end do
-    if (sim%particles_on) call particles_find_links(sim%parts, sim%dom)
-    if (sim%pair_on) then
-      sim%pair%n = size(chk%t_start)
-      sim%pair%in_episode = chk%in_episode
-      sim%pair%t_start = chk%t_start
-      sim%pair%t_end = chk%t_end
-      sim%pair%gap_min = chk%gap_min
-    end if
-    sim%restarted = .true.
-    sim%restart_from = path
-    sim%checkpoints = [path_t(path)]
-  end subroutine simulation_restore
-
-  !> The derived lattice parameters, sizes and models of the run, printed by rank 0 before it
-  !! starts (and by --check instead of running).
-  subroutine simulation_summary(sim)
-    type(simulation_t), intent(in) :: sim
-    character(len=512) :: line
-    character(len=256) :: particles, window
-    real(wp) :: s(0:8), mem(3), d1
-    integer :: k
-    associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
-      call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
-      write (line, '(a,a,a,i0,a)') 'scene ', trim(cfg%file), ' on ', dom%nranks, ' ranks'
-      call log_line(trim(line))
-      write (line, '(a,es12.5,a,es12.5,a,f8.5,a,es12.5)') 'lattice: dx = ', lp%dx, ' cm, dt = ', &
-        lp%dt, ' s, tau = ', lp%tau, ', nu = ', lp%nu_lb
-      call log_line(trim(line)//' (lattice units)')
-      s = collision_describe(sim%coll)
-      write (line, '(a,9(1x,f7.4))') 'rates s_0..s_8 (rho e eps jx qx jy qy pxx pxy):', s
-      call log_line(trim(line))
-      write (line, '(a,es12.4e3,a,es12.4e3,a,es12.4e3)') 'velocity scale ', &
-        lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
-      call log_line(trim(line))
-      if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
-        ! measured: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
-        ! 20, 30 and 40 spacings per diameter; with s_q = 1.2 it ran through
-        write (line, '(a,f6.3,a,f6.4,a)') 'the heat-flux rate s_q = ', sim%coll%s_q, &
-          ' (tau = ', lp%tau, ') leaves the q moments almost undamped; with moving '// &
-          'particles such runs were measured unstable. Set lbm.s_q = 1.2 (walls then sit '// &
-          'slightly off half-way), or raise lbm.tau'
-        call warn(trim(line))
-      end if
-      if (lp%mach > cfg%run%mach_limit) then
-        write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
-          ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '
-        call warn(trim(line)//' The velocity scale comes from '// &
-                  velocity_scale_source(cfg)//': lower it, or '//dx_knob(cfg)// &
-                  ' or lower lbm.tau (both shrink dt)')
-      end if
-      write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
-        int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
-      call log_line(trim(line))
-      mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
-      if (sim%particles_on) then
-        write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
-          ' boundary links on rank 0)'
-      else
-        particles = 'particles: none'
-      end if
-      window = 'window: none'
-      if (sim%window_on) then
-        d1 = maxval(cfg%particles%diameter(1:cfg%particles%count))
-        write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
-          cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
-      end if
-      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB, particle arrays '// &
-             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
-             trim(particles)//'; '//trim(window)
-      call log_line(trim(line))
-      line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
-      line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
-             trim(cfg%domain%lower)//', upper end '//trim(cfg%domain%upper)
-      if (sim%coll%forced) line = trim(line)//', body force'
-      if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
-        line = trim(line)//', inlet '//trim(cfg%inlet%profile)
-      if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
-      if (sim%particles_on) then
-        line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
-               ', E7 '//trim(cfg%coupling%momentum)//', E8-E11)'
-      else
-        line = trim(line)//'; particles off'
-      end if
-      if (sim%window_on) then
-        line = trim(line)//'; window on (lower end fluid at rest, upper end outflow)'
-      else
-        line = trim(line)//'; window off'
-      end if
-      call log_line(trim(line))
-      if (sim%pair_on) then
-        write (line, '(a,f6.2,a,f6.2,a)') 'pair diagnostics: particles 1 and 2; a kissing '// &
-          'episode starts at D_r <= ', sim%pair%enter, ' spacings and ends at D_r > ', &
-          sim%pair%release, ' spacings'
-        call log_line(trim(line))
-      end if
-      k = lp%field_every
-      if (k > 0) then
-        write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
-      else
-        line = 'fields at the end'
-      end if
-      call log_line(trim(line)//' into '//config_output_dir(cfg)//'/'//cfg%name//'.h5')
-    end associate
-  end subroutine simulation_summary
-
-  !> Create the output directory and file, and store the run's metadata. Called only after
-  !! every input check passed, so a bad input writes nothing.
-  subroutine simulation_open_output(sim)
-    type(simulation_t), intent(inout) :: sim
-    character(len=:), allocatable :: dir, err, nml
-    character(len=256) :: msg
-    integer :: ios
-    character(len=64) :: pnames(12)
-    real(wp) :: pvalues(12), s(0:8)
-    logical :: ok
-
-    sim%stop_reason = 'running'
-    dir = config_output_dir(sim%cfg)
-    err = ''
-    if (sim%dom%rank == 0) call make_directories(dir, err)
-    ok = len(err) == 0
-    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-    ! only rank 0 knows the reason; it is the rank that prints
-    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
-                                 err//'; choose a writable output.dir')
-    if (sim%restarted) then
-      ! the output of the run that wrote the checkpoint continues, cut back to its step
-      call io_reopen(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
-                     sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, sim%samples, &
-                     [character(len=11) :: 'particles', 'diagnostics'], &
-                     sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
-                     field_names, err)
-      if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
-                                       sim%restart_from//': '//err)
-      sim%output_open = .true.
-      call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
-      if (len(err) > 0) call fatal_local(err)
-      if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
-                                                               '_diagnostics.csv')
-      if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
-      call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
-      return
-    end if
-    ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
-    ! that a file that appears meanwhile is not clobbered)
-    call simulation_check_outputs(sim)
-    call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
-                 sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
-    if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
-    sim%output_open = .true.
-    call log_open(dir//'/'//sim%cfg%name//'.log', err)
-    if (len(err) > 0) call fatal_local(err)
-    if (sim%dom%rank == 0) then
-      call remove_file(dir//'/'//sim%cfg%name//'.finished')
-      call remove_file(dir//'/'//sim%cfg%name//'.checkpoint')
-    end if
-
-    s = collision_describe(sim%coll)
-    pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
-              'nx', 'ny', 'steps', 'mach']
-    pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
-               real(sim%lp%nx, wp), real(sim%lp%ny, wp), real(sim%lp%steps, wp), sim%lp%mach]
-    if (allocated(sim%cfg%given)) then
-      nml = sim%cfg%given            ! the input as read, before &pair and &window expanded
-    else
-      call config_to_namelist(sim%cfg, nml)
-    end if
-    call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
-                      compiler_version(), dkt_build_flags, pnames, pvalues)
-    call write_derived(sim)
-    ! replaced when the run ends; a file that still says 'running' is of a run that is going
-    ! on or was killed
-    call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
-    if (sim%pair_on .and. sim%dom%rank == 0) then
-      ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
-      open (newunit=sim%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
-            status='replace', action='write', iostat=ios, iomsg=msg)
-      if (ios /= 0) call fatal_local(trim(msg))
-      sim%csv_open = .true.
-      write (sim%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
-        'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
-    end if
-  contains
-    !> The scales and thresholds the run uses, as /run attributes, so that readers of the
-    !! file need not repeat the program's defaults: t_ref (s), h_ref = g t_ref^2 (cm), gravity
-    !! (cm/s^2), width (cm), rho_f (g/cm^3), mu (g/(cm s)); with particles d1 (cm, the larger
-    !! diameter of particles 1 and 2); with a pair the diameters of particles 1 and 2 (cm,
-    !! diameter_1, diameter_2) and the kissing thresholds in cm (kiss_enter,
-    !! kiss_release), in spacings (kiss_enter_cells, kiss_release_cells) and in D_1
-    !! (kiss_enter_d1, kiss_release_d1).
-    subroutine write_derived(sim)
-      type(simulation_t), intent(inout) :: sim
-      real(wp) :: enter, release
-      associate (c => sim%cfg, io => sim%io)
-        call io_write_attribute(io, '/run', 't_ref', c%run%t_ref)
-        call io_write_attribute(io, '/run', 'h_ref', c%particles%gravity*c%run%t_ref**2)
-        call io_write_attribute(io, '/run', 'gravity', c%particles%gravity)
-        call io_write_attribute(io, '/run', 'width', c%domain%width)
-        call io_write_attribute(io, '/run', 'rho_f', c%fluid%density)
-        call io_write_attribute(io, '/run', 'mu', c%fluid%viscosity)
-        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', &
-                                                      maxval(c%particles%diameter( &
-                                                             1:min(2, c%particles%count))))
-        if (sim%pair_on) then
-          call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
-          call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
-          call kiss_thresholds(c, enter, release)
-          call io_write_attribute(io, '/run', 'kiss_enter', enter*sim%lp%dx)
-          call io_write_attribute(io, '/run', 'kiss_release', release*sim%lp%dx)
-          call io_write_attribute(io, '/run', 'kiss_enter_cells', kiss_enter_cells(c))
-          call io_write_attribute(io, '/run', 'kiss_release_cells', c%diagnostics%release_cells)
-          call io_write_attribute(io, '/run', 'kiss_enter_d1', c%diagnostics%enter_d1)
-          call io_write_attribute(io, '/run', 'kiss_release_d1', c%diagnostics%release_d1)
-        end if
-      end associate
-    end subroutine write_derived
-
-    !> Keep the header and the first `samples` rows of the CSV file, then append to it.
-    subroutine reopen_csv(path)
-      character(len=*), intent(in) :: path
-      character(len=2048), allocatable :: rows(:)
-      integer :: u, k
-      allocate (rows(sim%samples + 1))
-      open (newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-      if (ios /= 0) call fatal_local('--restart: cannot read '//path//': '//trim(msg))
-      do k = 1, sim%samples + 1
-        read (u, '(a)', iostat=ios) rows(k)
-        if (ios /= 0) call fatal_local('--restart: '//path//' has fewer rows than the '// &
-                                       'checkpoint''s samples')
-      end do
-      close (u)
-      open (newunit=sim%csv_unit, file=path, status='replace', action='write', iostat=ios, &
-            iomsg=msg)
-      if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
-      do k = 1, sim%samples + 1
-        write (sim%csv_unit, '(a)') trim(rows(k))
-      end do
-      sim%csv_open = .true.
-    end subroutine reopen_csv
-  end subroutine simulation_open_output
-
-  !> Stop every rank when output.dir holds a file of an earlier run of this scene and
-  !! output.overwrite is off; the run makes this check before it writes, and --check makes the
-  !! same one so that it refuses what the run would refuse. A resumed run continues its files.
-  subroutine simulation_check_outputs(sim)
-    type(simulation_t), intent(in) :: sim
-    !> the files of a run besides <name>.h5, as suffixes of the scene name
-    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
-                                                    '.xdmf           ', '_diagnostics.csv', &
-                                                    '.checkpoint     ', '.finished       ']
-    character(len=4096) :: found
-    character(len=:), allocatable :: dir
-    logical :: ok
-    integer :: k
-    if (sim%cfg%output%overwrite .or. sim%restarted) return
-    dir = config_output_dir(sim%cfg)
-    found = ''
-    if (sim%dom%rank == 0) then
-      do k = 1, size(RUN_FILES)
-        if (path_exists(dir//'/'//sim%cfg%name//trim(RUN_FILES(k)))) &
-          found = trim(found)//', '//dir//'/'//sim%cfg%name//trim(RUN_FILES(k))
-      end do
-    end if
-    ok = len_trim(found) == 0
-    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir// &
-                                 ''' holds files of an earlier run of this scene ('// &
-                                 trim(found(3:))//'); set output.overwrite = .true., '// &
-                                 'choose another output.dir, or resume with --restart')
-  end subroutine simulation_check_outputs
-
   !> The time loop.
   subroutine simulation_run(sim)
     type(simulation_t), intent(inout) :: sim
-    real(wp), pointer, contiguous :: tmp(:, :, :)
-    integer :: n, nyl, nx, nxp, last_progress, first, flags
-    integer, asynchronous :: flags_out, flags_in !! buffers of the flag reduction in flight
-    type(MPI_Request) :: request
-    logical :: pending
-    real(wp) :: t, mach, t_start, t_last, y0, t_checkpoint
-    logical :: last
-    character(len=256) :: line
-    character(len=:), allocatable :: reason, failure
-    logical :: ok
+    type(progress_t) :: prog
+    type(checkpoint_clock_t), asynchronous :: clock
+    integer :: n
+    real(wp) :: t, mach, y0
+    logical :: last, stop
+    character(len=:), allocatable :: failure
 
-    nx = sim%dom%nx
-    nyl = sim%dom%nyl
-    nxp = sim%dom%nxp
     associate (lp => sim%lp, cfg => sim%cfg)
       if (.not. sim%restarted) then
-        if (lp%field_every > 0) call write_fields(sim, 0)
-        if (sim%particles_on) call write_particles(sim, 0)
+        if (lp%field_every > 0) call output_fields(sim, 0)
+        if (sim%particles_on) call output_particles(sim, 0)
       end if
-      call signals_install()
-      first = sim%step + 1
-      t_start = MPI_Wtime()
-      t_last = t_start
-      t_checkpoint = t_start
-      last_progress = sim%step
-      pending = .false.
+      call checkpoint_start(clock)
+      call report_start(prog, sim%step + 1)
       failure = ''
-      do n = first, lp%steps
+      do n = sim%step + 1, lp%steps
         if (sim%particles_on) then
           call particle_step(sim, n)
         else
-          ! E1-E5: exchange the crossing populations while the rows that do not need them are
-          ! swept, then the two rows next to the slab faces
-          call halo_start(sim%dom, sim%f)
-          call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
-          call halo_finish(sim%dom, sim%f)
-          call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
-          call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+          call fluid_step(sim, n)
         end if
-        tmp => sim%f
-        sim%f => sim%f_next
-        sim%f_next => tmp
+        call swap_lattices(sim)
         sim%step = n
         t = n*lp%dt
         y0 = 0.0_wp
@@ -709,12 +229,7 @@ contains
                            mach, failure)
           if (len(failure) > 0) exit
         end if
-        if (lp%field_every > 0) then
-          if (mod(n, lp%field_every) == 0 .and. .not. last) call write_fields(sim, n)
-        end if
-        if (sim%particles_on .and. lp%series_every > 0) then
-          if (mod(n, lp%series_every) == 0 .and. .not. last) call write_particles(sim, n)
-        end if
+        if (.not. last) call output_scheduled(sim, n)
         if (cfg%run%progress_every > 0) then
           if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
@@ -723,54 +238,13 @@ contains
                                y0, mach, failure)
               if (len(failure) > 0) exit
             end if
-            call progress(n, last_progress, t_last, t_start, mach)
+            call report_progress(sim, prog, n, mach)
           end if
         end if
-        ! checkpoints: every checkpoint_every steps, every checkpoint_wall seconds (rank 0's
-        ! clock), and before stopping on a signal or at the wall limit. The ranks agree on the
-        ! signal and clock flags with a reduction started one step earlier, so that no step
-        ! waits for it; every rank acts on the same flags at the same step.
-        flags = 0
-        if (pending) then
-          call MPI_Wait(request, MPI_STATUS_IGNORE)
-          flags = flags_in
-          pending = .false.
-        end if
-        if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
-          call write_checkpoint(sim)
-          sim%interrupted = .true.
-          if (btest(flags, 0)) then
-            reason = 'on signal '//trim(merge('SIGTERM', 'SIGUSR1', &
-                                              signal_caught() == SIGTERM .or. &
-                                              signal_caught() == 0))
-            sim%stop_reason = 'signal'
-          else
-            reason = 'at run.wall_limit'
-            sim%stop_reason = 'wall_limit'
-          end if
-          exit
-        end if
-        if (last) exit ! (a checkpoint at the last step follows the final output)
-        if (btest(flags, 1) .or. cfg%run%checkpoint_every > 0) then
-          if (btest(flags, 1) .or. mod(n, max(1, cfg%run%checkpoint_every)) == 0) then
-            call write_checkpoint(sim)
-            t_checkpoint = MPI_Wtime()
-          end if
-        end if
-        flags_out = 0
-        if (signal_caught() /= 0) flags_out = ibset(flags_out, 0)
-        if (sim%dom%rank == 0) then
-          if (cfg%run%checkpoint_wall > 0.0_wp .and. &
-              MPI_Wtime() - t_checkpoint >= cfg%run%checkpoint_wall) &
-            flags_out = ibset(flags_out, 1)
-          if (cfg%run%wall_limit > 0.0_wp .and. MPI_Wtime() - t_start >= cfg%run%wall_limit) &
-            flags_out = ibset(flags_out, 2)
-        end if
-        call MPI_Iallreduce(flags_out, flags_in, 1, MPI_INTEGER, MPI_BOR, sim%dom%comm, request)
-        pending = .true.
+        call checkpoint_due(sim, clock, last, stop)
+        if (stop .or. last) exit
       end do
-      ! a guard stop leaves the flag reduction of the step before in flight
-      if (pending) call MPI_Wait(request, MPI_STATUS_IGNORE)
+      call checkpoint_finish(clock)
       n = sim%step
       if (len(failure) > 0) then
         ! every rank saw the same failure: write the last step's state (what went wrong is
@@ -778,23 +252,14 @@ contains
         sim%stop_reason = 'guard: '//failure
         call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
                       '; the output holds the run up to this step')
-        call close_output(sim)
+        call output_close(sim)
         call fatal_all(failure, EXIT_RUNTIME)
       end if
-      t = MPI_Wtime() - t_start
-      write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
-        real(lp%nx, wp)*real(lp%ny, wp)*real(n - first + 1, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, &
-        ' MLUPS (', int(lp%nx, i8)*lp%ny, ' cells x ', n - first + 1, ' steps in ', t, &
-        ' s on ', sim%dom%nranks, ' ranks)'
-      call log_line(trim(line))
+      call report_performance(sim, prog, n)
       if (sim%interrupted) then
-        call log_line('stopped '//reason//' after step '//itoa(n)//' of '//itoa(lp%steps)// &
-                      '; checkpoint '//sim%checkpoints(size(sim%checkpoints))%s// &
-                      ' written. Resume with:')
-        call log_line('  '//resume_command(sim%checkpoints(size(sim%checkpoints))%s, &
-                                           sim%dom%nranks))
+        call checkpoint_stop_message(sim, clock)
         ! the output up to this step; a resumed run cuts back what the checkpoint has not
-        call close_output(sim)
+        call output_close(sim)
         return
       end if
       sim%stop_reason = 'finished'
@@ -802,186 +267,38 @@ contains
         sim%stop_reason = 'window_escape'
         call warn(sim%stopped_early)
       end if
-      if (sim%fields_step /= n) call write_fields(sim, n)
-      if (sim%particles_on .and. sim%series_step /= n) call write_particles(sim, n)
-      if (sim%pair_on) call pair_report(sim)
-      ! a checkpoint at the last step lets the run be extended (a larger run.t_end); the final
-      ! sample counts only when it is on the series schedule, as in a longer run
-      if (cfg%run%checkpoint_every > 0) then
-        if (mod(n, cfg%run%checkpoint_every) == 0) &
-          call write_checkpoint(sim, merge(1, 0, sim%particles_on .and. &
-                                           mod(n, lp%series_every) /= 0))
-      end if
-      call close_output(sim)
-      ok = .true.
-      if (sim%dom%rank == 0) ok = write_marker(config_output_dir(cfg)//'/'//cfg%name// &
-                                               '.finished', itoa(n))
-      call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-      if (.not. ok) call fatal_all('cannot write the marker file '''// &
-                                   config_output_dir(cfg)//'/'//cfg%name//'.finished'''// &
-                                   ': the run finished and its output is complete, but '// &
-                                   'batch scripts that wait for this file will not see it; '// &
-                                   'check that output.dir is writable', EXIT_RUNTIME)
+      call output_final(sim)
+      call checkpoint_final(sim)
+      call output_close(sim)
+      call output_mark_finished(sim)
     end associate
-  contains
-    subroutine progress(n, last, t_last, t_start, mach)
-      integer, intent(in) :: n
-      integer, intent(inout) :: last
-      real(wp), intent(inout) :: t_last
-      real(wp), intent(in) :: t_start, mach
-      real(wp) :: now, mlups, eta
-      integer :: h, m, s
-      now = MPI_Wtime()
-      mlups = real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - last, wp)/ &
-              max(now - t_last, 1.0e-9_wp)/1.0e6_wp
-      ! the time per step of this process (a resumed run started at step first - 1)
-      eta = (now - t_start)/real(n - first + 1, wp)*real(sim%lp%steps - n, wp)
-      h = int(eta)/3600
-      m = mod(int(eta), 3600)/60
-      s = mod(int(eta), 60)
-      write (line, '(a,i0,a,i0,a,es11.4,a,f9.4,a,f7.4,a,f9.2,a,i0,a,i2.2,a,i2.2)') 'step ', n, &
-        '/', sim%lp%steps, '  t = ', n*sim%lp%dt, ' s  t* = ', n*sim%lp%dt/sim%cfg%run%t_ref, &
-        '  Ma = ', mach, '  MLUPS ', mlups, '  ETA ', h, ':', m, ':', s
-      call log_line(trim(line))
-      last = n
-      t_last = now
-    end subroutine progress
   end subroutine simulation_run
 
-  !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
-  !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint
-  !! written before stays as it was.
-  subroutine write_checkpoint(sim, unscheduled)
+  !> One step without particles (E1-E5): exchange the crossing populations while the rows that
+  !! do not need them are swept, then the two rows next to the slab faces; open ends last.
+  subroutine fluid_step(sim, n)
     type(simulation_t), intent(inout) :: sim
-    integer, intent(in), optional :: unscheduled !! samples written off the series schedule
-    type(checkpoint_t) :: chk
-    character(len=:), allocatable :: dir, path, err, before
-    integer :: k
-    logical :: ok
-    dir = config_output_dir(sim%cfg)
-    path = checkpoint_name(dir, sim%cfg%name, sim%step)
-    chk%step = sim%step
-    chk%shift = sim%win%shift
-    chk%samples = sim%samples
-    if (present(unscheduled)) chk%samples = sim%samples - unscheduled
-    chk%nx = sim%lp%nx
-    chk%ny = sim%lp%ny
-    chk%dx = sim%lp%dx
-    chk%dt = sim%lp%dt
-    allocate (chk%particles(NSTATE, merge(sim%parts%n, 0, sim%particles_on)))
-    do k = 1, size(chk%particles, 2)
-      associate (p => sim%parts%p(k))
-        chk%particles(:, k) = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
-      end associate
-    end do
-    chk%in_episode = sim%pair_on .and. sim%pair%in_episode
-    if (sim%pair_on) then
-      chk%t_start = sim%pair%t_start(1:sim%pair%n)
-      chk%t_end = sim%pair%t_end(1:sim%pair%n)
-      chk%gap_min = sim%pair%gap_min(1:sim%pair%n)
-    else
-      allocate (chk%t_start(0), chk%t_end(0), chk%gap_min(0))
-    end if
-    call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
-                          sim%cfg%given, err)
-    if (len(err) > 0) then
-      before = 'none'
-      if (allocated(sim%checkpoints)) then
-        if (size(sim%checkpoints) > 0) before = sim%checkpoints(size(sim%checkpoints))%s
-      end if
-      call simulation_fail(sim, err//'. The last checkpoint written is '//before)
-    end if
-    if (.not. allocated(sim%checkpoints)) allocate (sim%checkpoints(0))
-    sim%checkpoints = [sim%checkpoints, path_t(path)]
-    ok = .true.
-    if (sim%dom%rank == 0) ok = write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
-    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-    ! batch scripts resume from the checkpoint the marker names: a stale one would lose steps
-    if (.not. ok) call simulation_fail(sim, 'cannot write the marker file '''//dir//'/'// &
-                                       sim%cfg%name//'.checkpoint'' naming the checkpoint '// &
-                                       path//'; check that output.dir is writable')
-    do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
-      if (sim%dom%rank == 0) call remove_file(sim%checkpoints(1)%s)
-      sim%checkpoints = sim%checkpoints(2:)
-    end do
-    call log_line('checkpoint '//path)
-  end subroutine write_checkpoint
+    integer, intent(in) :: n
+    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+      call halo_start(sim%dom, sim%f)
+      call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call halo_finish(sim%dom, sim%f)
+      call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+      call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+    end associate
+  end subroutine fluid_step
 
-  !> A one-line text file (rank-local), for batch scripts: replaced atomically. False when it
-  !! could not be written (the caller stops the run: the scripts would act on a stale marker).
-  logical function write_marker(path, text) result(ok)
-    character(len=*), intent(in) :: path, text
-    integer :: u, ios
-    ok = .false.
-    open (newunit=u, file=path//'.tmp', status='replace', action='write', iostat=ios)
-    if (ios /= 0) return
-    write (u, '(a)', iostat=ios) text
-    if (ios /= 0) then
-      close (u, status='delete', iostat=ios)
-      return
-    end if
-    close (u, iostat=ios)
-    if (ios /= 0) return
-    ok = rename_file(path//'.tmp', path)
-    if (.not. ok) call remove_file(path//'.tmp')
-  end function write_marker
-
-  !> Stop the run on an error all ranks detected together after the output was opened: the
-  !! output is completed up to the current step and closed with stop_reason 'error: <msg>',
-  !! then every rank exits with EXIT_RUNTIME and rank 0 prints `msg`.
-  subroutine simulation_fail(sim, msg)
+  !> f_next (written by the sweep) becomes the current lattice f.
+  subroutine swap_lattices(sim)
     type(simulation_t), intent(inout) :: sim
-    character(len=*), intent(in) :: msg
-    sim%stop_reason = 'error: '//msg
-    call close_output(sim)
-    call fatal_all(msg, EXIT_RUNTIME)
-  end subroutine simulation_fail
-
-  !> Complete the output of the current step (the fields and the particle sample unless they
-  !! are written, the pair's report), store why the run ended as /run stop_reason and close the
-  !! run file and the CSV file. Collective; nothing happens once the output is closed.
-  subroutine close_output(sim)
-    type(simulation_t), intent(inout) :: sim
-    if (.not. sim%output_open) return
-    if (sim%fields_step /= sim%step) call write_fields(sim, sim%step)
-    if (sim%particles_on .and. sim%series_step /= sim%step) call write_particles(sim, sim%step)
-    if (sim%pair_on .and. .not. sim%reported) call pair_report(sim)
-    call io_write_attribute(sim%io, '/run', 'stop_reason', sim%stop_reason)
-    call io_close(sim%io)
-    sim%output_open = .false.
-    if (sim%csv_open) close (sim%csv_unit)
-    sim%csv_open = .false.
-  end subroutine close_output
-
-  !> The command that resumes this run from `checkpoint`: this process's arguments with
-  !! --restart replaced, under mpirun with the same rank count.
-  function resume_command(checkpoint, nranks) result(cmd)
-    character(len=*), intent(in) :: checkpoint
-    integer, intent(in) :: nranks
-    character(len=:), allocatable :: cmd, arg
-    integer :: j, length
-    logical :: skip
-    cmd = 'mpirun -n '//itoa(nranks)
-    skip = .false.
-    do j = 0, command_argument_count()
-      call get_command_argument(j, length=length)
-      allocate (character(len=length) :: arg)
-      call get_command_argument(j, arg)
-      if (skip) then
-        skip = .false.
-      else if (arg == '--restart') then
-        skip = .true.
-      else if (index(arg, '--restart=') /= 1) then
-        if (index(arg, ' ') > 0 .or. len(arg) == 0) then
-          cmd = cmd//' '''//arg//''''
-        else
-          cmd = cmd//' '//arg
-        end if
-      end if
-      deallocate (arg)
-    end do
-    cmd = cmd//' --restart '//checkpoint
-  end function resume_command
+    real(wp), pointer, contiguous :: tmp(:, :, :)
+    tmp => sim%f
+    sim%f => sim%f_next
+    sim%f_next => tmp
+  end subroutine swap_lattices
 
   !> One step with particles: the halo is completed before the sweep because a boundary link
   !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
@@ -1104,153 +421,6 @@ contains
     end associate
     call pair_diag_update(sim%pair, n*sim%lp%dt, gr)
   end subroutine pair_sample
-
-  !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
-  !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
-  !! of the step that reached time t.
-  subroutine write_particles(sim, n)
-    type(simulation_t), intent(inout) :: sim
-    integer, intent(in) :: n
-    real(wp), allocatable :: v(:, :)
-    real(wp) :: dx, dt, fu, y0
-    integer :: k
-    dx = sim%lp%dx
-    dt = sim%lp%dt
-    fu = sim%cfg%fluid%density*dx**3/dt**2
-    y0 = 0.0_wp
-    ! lattice y counts from the window's lower end; the series holds absolute positions
-    if (sim%window_on) y0 = window_offset(sim%win, dx)
-    allocate (v(sim%parts%n, 8))
-    do k = 1, sim%parts%n
-      associate (p => sim%parts%p(k))
-        v(k, :) = [p%x*dx, p%y*dx + y0, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
-                   p%fy*fu, p%torque*fu*dx]
-      end associate
-    end do
-    if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
-    sim%samples = sim%samples + 1
-    sim%series_step = n
-    call io_write_series(sim%io, 'particles', ['t'], [n*dt])
-    call io_write_table(sim%io, 'particles', series_names, v)
-    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])
-    if (sim%pair_on) call write_pair(sim, n, v)
-  end subroutine write_particles
-
-  !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
-  !! (particle, quantity) in physical units as written to /particles.
-  subroutine write_pair(sim, n, v)
-    type(simulation_t), intent(inout) :: sim
-    integer, intent(in) :: n
-    real(wp), intent(in) :: v(:, :)
-    real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
-    character(len=7) :: names(6)
-    character(len=1024) :: row
-    integer :: k
-    t = n*sim%lp%dt
-    rho_f = sim%cfg%fluid%density
-    mu = sim%cfg%fluid%viscosity
-    d = 2.0_wp*sim%parts%p(1:2)%r*sim%lp%dx
-    call pair_gaps(v(1, 1), v(1, 2), 0.5_wp*d(1), v(2, 1), v(2, 2), 0.5_wp*d(2), gx, gy, gr)
-    do k = 1, 2
-      re(k) = rho_f*hypot(v(k, 3), v(k, 4))*d(k)/mu
-      cd(k) = drag_coefficient(v(k, 7), v(k, 3), v(k, 4), rho_f, d(k))
-    end do
-    names = [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
-    call io_write_series(sim%io, 'diagnostics', names, &
-                         [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)])
-    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]))
-    if (sim%csv_open) then
-      write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
-        re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
-      write (sim%csv_unit, '(a)') trim(row)
-      ! kept on disk row by row: a rank that aborts the job must not take the series with it
-      flush (sim%csv_unit)
-    end if
-  end subroutine write_pair
-
-  !> At the end of a run with a pair: the pattern and its episodes into /diagnostics and the
-  !! log, with the thresholds they were found with.
-  subroutine pair_report(sim)
-    type(simulation_t), intent(inout) :: sim
-    real(wp) :: dx, d(2), gamma, dh
-    character(len=7), parameter :: episode_names(3) = ['start  ', 'end    ', 'gap_min']
-    character(len=256) :: line
-    character(len=:), allocatable :: pattern
-    integer :: k
-    dx = sim%lp%dx
-    pattern = pair_pattern(sim%pair)
-    sim%reported = .true.
-    associate (cp => sim%cfg%particles, e => sim%pair)
-      d = cp%diameter(1:2)
-      gamma = maxval(d)/minval(d)
-      dh = abs(cp%y(1) - cp%y(2))/maxval(d)
-      call io_write_attribute(sim%io, '/diagnostics', 'pattern', pattern)
-      call io_write_attribute(sim%io, '/diagnostics', 'episodes', e%n)
-      call io_write_attribute(sim%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter', e%enter*dx)
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release', e%release*dx)
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter_cells', &
-                              kiss_enter_cells(sim%cfg))
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
-                              sim%cfg%diagnostics%release_cells)
-      call io_write_attribute(sim%io, '/diagnostics', 'd1', maxval(d))
-      call io_write_attribute(sim%io, '/diagnostics', 'gamma', gamma)
-      call io_write_attribute(sim%io, '/diagnostics', 'dh', dh)
-      call io_write_attribute(sim%io, '/diagnostics', 't_ref', sim%cfg%run%t_ref)
-      call io_write_attribute(sim%io, '/diagnostics', 'h_ref', &
-                              cp%gravity*sim%cfg%run%t_ref**2)
-      call io_write_attribute(sim%io, '/diagnostics', 'gravity', cp%gravity)
-      call io_write_attribute(sim%io, '/diagnostics', 'width', sim%cfg%domain%width)
-      call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
-                              merge(0, 1, sim%stop_reason == 'finished'))
-      do k = 1, e%n
-        call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
-                             [e%t_start(k), e%t_end(k), e%gap_min(k)*dx])
-      end do
-      write (line, '(a,f5.2,a,f6.2,a,i0,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
-        ', D_h/D_1 = ', dh, '; ', e%n, ' kissing episodes)'
-      call log_line(trim(line))
-      do k = 1, e%n
-        write (line, '(a,i0,a,f8.4,a,f8.4,a,f7.3,a,f7.3,a,f7.4,a)') '  episode ', k, ': t = ', &
-          e%t_start(k), ' .. ', e%t_end(k), ' s (t* = ', e%t_start(k)/sim%cfg%run%t_ref, &
-          ' .. ', e%t_end(k)/sim%cfg%run%t_ref, '), smallest D_r = ', e%gap_min(k)*dx, ' cm'
-        if (k == e%n .and. e%in_episode) line = trim(line)//', still open at the end'
-        call log_line(trim(line))
-      end do
-      write (line, '(a,f7.4,a,f5.2,a,f7.4,a,f5.2,a)') '  thresholds: enter D_r <= ', &
-        e%enter*dx, ' cm (', e%enter, ' spacings), release D_r > ', e%release*dx, ' cm (', &
-        e%release, ' spacings)'
-      call log_line(trim(line))
-    end associate
-  end subroutine pair_report
-
-  !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
-  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
-  subroutine write_fields(sim, n)
-    type(simulation_t), intent(inout) :: sim
-    integer, intent(in) :: n
-    real(wp), allocatable :: fld(:, :, :)
-    real(wp) :: uc, y0
-    associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
-      allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
-      call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
-      call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
-      uc = lp%dx/lp%dt
-      fld(:, :, 5) = cs2*(fld(:, :, 1) - 1.0_wp)*sim%cfg%fluid%density*uc*uc
-      fld(:, :, 1) = fld(:, :, 1)*sim%cfg%fluid%density
-      fld(:, :, 2:3) = fld(:, :, 2:3)*uc
-      fld(:, :, 4) = fld(:, :, 4)/lp%dt
-      y0 = 0.0_wp
-      if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
-      sim%fields_step = n
-      if (sim%particles_on) then
-        call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)
-      else
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names(1:5), fld)
-      end if
-    end associate
-  end subroutine write_fields
 
   subroutine simulation_finish(sim)
     type(simulation_t), intent(inout) :: sim

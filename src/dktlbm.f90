@@ -6,11 +6,12 @@ program dktlbm
                      MPI_INTEGER, MPI_CHARACTER
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
-                        config_load, derive_lattice, config_to_namelist, print_help, &
+                        config_load, config_to_namelist, print_help, &
                         config_check_text
-  use dkt_simulation, only: simulation_t, simulation_setup, simulation_summary, &
-                            simulation_open_output, simulation_run, simulation_finish, &
-                            simulation_restore, simulation_check_outputs
+  use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
+  use dkt_report, only: report_summary
+  use dkt_checkpoint_policy, only: checkpoint_resume
+  use dkt_output, only: output_open, output_check_existing
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -35,7 +36,8 @@ program dktlbm
   call read_input(cli%nml_file, text)
   call config_check_text(text, cli%nml_file, err)
   if (len(err) > 0) call fatal_all(err)
-  call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings)
+  ! validates the input (each key, then the rules that join keys) once and derives the lattice
+  call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings, lp)
   if (len(err) > 0) call fatal_all(err)
   if (cli%print_defaults) then
     ! the file's values with the --set options applied, as a namelist that reads back
@@ -43,19 +45,17 @@ program dktlbm
     call MPI_Finalize()
     stop
   end if
-  call derive_lattice(cfg, lp, err)
-  if (len(err) > 0) call fatal_all(err)
   call warn_lines(warnings)
 
   ! --check sets up all but the lattices (the memory check included), reports and refuses
   ! what the run would refuse
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
-  if (len(cli%restart) > 0 .and. .not. cli%check) call simulation_restore(sim, cli%restart)
-  call simulation_summary(sim)
+  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
+  call report_summary(sim)
   if (cli%check) then
-    if (len(cli%restart) == 0) call simulation_check_outputs(sim)
+    if (len(cli%restart) == 0) call output_check_existing(sim)
   else
-    call simulation_open_output(sim)
+    call output_open(sim)
     call simulation_run(sim)
   end if
   call simulation_finish(sim)

@@ -1,0 +1,274 @@
+!> When the run writes checkpoints and what it does around them: every run.checkpoint_every
+!> steps, every run.checkpoint_wall seconds, before stopping on a signal or at run.wall_limit,
+!> and at the last step; the marker <name>.checkpoint naming the newest, the older ones removed
+!> beyond run.checkpoint_keep; the command that resumes; and the resumption itself.
+module dkt_checkpoint_policy
+  use mpi_f08, only: MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Iallreduce, MPI_Wait, MPI_Request, &
+                     MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR
+  use dkt_kinds, only: wp
+  use dkt_errors, only: fatal_all
+  use dkt_config, only: config_output_dir
+  use dkt_particles, only: particles_find_links
+  use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
+                            NSTATE
+  use dkt_signals, only: signals_install, signal_caught, SIGTERM
+  use dkt_log, only: log_line
+  use dkt_filesystem, only: remove_file, write_marker
+  use dkt_registry, only: itoa
+  use dkt_run_state, only: simulation_t, path_t
+  use dkt_output, only: output_fail
+  implicit none
+  private
+  public :: checkpoint_clock_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
+            checkpoint_final, checkpoint_stop_message, checkpoint_resume
+
+  !> The ranks agree on the signal and clock flags with a reduction started one step earlier,
+  !! so that no step waits for it; every rank acts on the same flags at the same step.
+  !! Bit 0: a signal arrived; bit 1: run.checkpoint_wall passed; bit 2: run.wall_limit passed.
+  type :: checkpoint_clock_t
+    integer :: flags_out = 0, flags_in = 0 !! buffers of the flag reduction in flight
+    type(MPI_Request) :: request
+    logical :: pending = .false.
+    real(wp) :: t_start = 0.0_wp       !! wall time at the first step (run.wall_limit)
+    real(wp) :: t_checkpoint = 0.0_wp  !! wall time of the last checkpoint (checkpoint_wall)
+    character(len=:), allocatable :: reason !! why the run stopped to be resumed, for the log
+  end type checkpoint_clock_t
+
+contains
+
+  !> Install the signal handlers and start the clocks, before the first step.
+  subroutine checkpoint_start(clock)
+    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
+    call signals_install()
+    clock%t_start = MPI_Wtime()
+    clock%t_checkpoint = clock%t_start
+    clock%pending = .false.
+    clock%reason = ''
+  end subroutine checkpoint_start
+
+  !> After each step: write the checkpoints that are due. `stop` = .true. when the run wrote
+  !! a checkpoint on a signal or at the wall limit and ends here to be resumed. At the `last`
+  !! step nothing is written (a checkpoint at the last step follows the final output).
+  subroutine checkpoint_due(sim, clock, last, stop)
+    type(simulation_t), intent(inout) :: sim
+    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
+    logical, intent(in) :: last
+    logical, intent(out) :: stop
+    integer :: flags
+    stop = .false.
+    flags = 0
+    if (clock%pending) then
+      call MPI_Wait(clock%request, MPI_STATUS_IGNORE)
+      flags = clock%flags_in
+      clock%pending = .false.
+    end if
+    if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
+      call checkpoint_save(sim)
+      sim%interrupted = .true.
+      if (btest(flags, 0)) then
+        clock%reason = 'on signal '//trim(merge('SIGTERM', 'SIGUSR1', &
+                                                signal_caught() == SIGTERM .or. &
+                                                signal_caught() == 0))
+        sim%stop_reason = 'signal'
+      else
+        clock%reason = 'at run.wall_limit'
+        sim%stop_reason = 'wall_limit'
+      end if
+      stop = .true.
+      return
+    end if
+    if (last) return
+    if (btest(flags, 1) .or. sim%cfg%run%checkpoint_every > 0) then
+      if (btest(flags, 1) .or. mod(sim%step, max(1, sim%cfg%run%checkpoint_every)) == 0) then
+        call checkpoint_save(sim)
+        clock%t_checkpoint = MPI_Wtime()
+      end if
+    end if
+    clock%flags_out = 0
+    if (signal_caught() /= 0) clock%flags_out = ibset(clock%flags_out, 0)
+    if (sim%dom%rank == 0) then
+      if (sim%cfg%run%checkpoint_wall > 0.0_wp .and. &
+          MPI_Wtime() - clock%t_checkpoint >= sim%cfg%run%checkpoint_wall) &
+        clock%flags_out = ibset(clock%flags_out, 1)
+      if (sim%cfg%run%wall_limit > 0.0_wp .and. &
+          MPI_Wtime() - clock%t_start >= sim%cfg%run%wall_limit) &
+        clock%flags_out = ibset(clock%flags_out, 2)
+    end if
+    call MPI_Iallreduce(clock%flags_out, clock%flags_in, 1, MPI_INTEGER, MPI_BOR, &
+                        sim%dom%comm, clock%request)
+    clock%pending = .true.
+  end subroutine checkpoint_due
+
+  !> After the loop: complete the flag reduction still in flight (a guard stop leaves the one
+  !! of the step before).
+  subroutine checkpoint_finish(clock)
+    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
+    if (clock%pending) call MPI_Wait(clock%request, MPI_STATUS_IGNORE)
+    clock%pending = .false.
+  end subroutine checkpoint_finish
+
+  !> At the end of a finished run: a checkpoint at the last step lets the run be extended (a
+  !! larger run.t_end); the final sample counts only when it is on the series schedule, as in a
+  !! longer run.
+  subroutine checkpoint_final(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (sim%cfg%run%checkpoint_every > 0) then
+      if (mod(sim%step, sim%cfg%run%checkpoint_every) == 0) &
+        call checkpoint_save(sim, merge(1, 0, sim%particles_on .and. &
+                                        mod(sim%step, sim%lp%series_every) /= 0))
+    end if
+  end subroutine checkpoint_final
+
+  !> The log lines of a run stopped to be resumed: why, where, and the command that resumes.
+  subroutine checkpoint_stop_message(sim, clock)
+    type(simulation_t), intent(in) :: sim
+    type(checkpoint_clock_t), intent(in) :: clock
+    call log_line('stopped '//clock%reason//' after step '//itoa(sim%step)//' of '// &
+                  itoa(sim%lp%steps)//'; checkpoint '// &
+                  sim%checkpoints(size(sim%checkpoints))%s//' written. Resume with:')
+    call log_line('  '//resume_command(sim%checkpoints(size(sim%checkpoints))%s, &
+                                       sim%dom%nranks))
+  end subroutine checkpoint_stop_message
+
+  !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
+  !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
+  !! another lattice or time step, or with another number of particles, stops every rank.
+  subroutine checkpoint_resume(sim, path)
+    type(simulation_t), intent(inout) :: sim
+    character(len=*), intent(in) :: path
+    type(checkpoint_t) :: chk
+    character(len=:), allocatable :: err
+    character(len=512) :: msg
+    integer :: k
+    call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
+                         sim%dom%y0, merge(sim%parts%n, 0, sim%particles_on), chk, err)
+    if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
+    if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
+        abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
+        abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
+        chk%np /= merge(sim%parts%n, 0, sim%particles_on)) then
+      write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
+        ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
+        ' cm, dt = ', chk%dt, ' s with ', chk%np, ' particles; the scene '// &
+        'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
+        ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
+        '--set options of the run that wrote it'
+      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
+    end if
+    if (chk%step > sim%lp%steps) then
+      write (msg, '(a,i0,a,i0,a)') ': the checkpoint is at step ', chk%step, &
+        ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
+      call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
+    end if
+    sim%step = chk%step
+    sim%samples = chk%samples
+    sim%win%shift = chk%shift
+    do k = 1, size(chk%particles, 2)
+      associate (p => sim%parts%p(k), v => chk%particles(:, k))
+        p%x = v(1); p%y = v(2); p%u = v(3); p%v = v(4); p%omega = v(5)
+        p%fx = v(6); p%fy = v(7); p%torque = v(8); p%cx = v(9); p%cy = v(10)
+      end associate
+    end do
+    if (sim%particles_on) call particles_find_links(sim%parts, sim%dom)
+    if (sim%pair_on) then
+      sim%pair%n = size(chk%t_start)
+      sim%pair%in_episode = chk%in_episode
+      sim%pair%t_start = chk%t_start
+      sim%pair%t_end = chk%t_end
+      sim%pair%gap_min = chk%gap_min
+    end if
+    sim%restarted = .true.
+    sim%restart_from = path
+    sim%checkpoints = [path_t(path)]
+  end subroutine checkpoint_resume
+
+  !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
+  !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint
+  !! written before stays as it was.
+  subroutine checkpoint_save(sim, unscheduled)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in), optional :: unscheduled !! samples written off the series schedule
+    type(checkpoint_t) :: chk
+    character(len=:), allocatable :: dir, path, err, before
+    integer :: k
+    logical :: ok
+    dir = config_output_dir(sim%cfg)
+    path = checkpoint_name(dir, sim%cfg%name, sim%step)
+    chk%step = sim%step
+    chk%shift = sim%win%shift
+    chk%samples = sim%samples
+    if (present(unscheduled)) chk%samples = sim%samples - unscheduled
+    chk%nx = sim%lp%nx
+    chk%ny = sim%lp%ny
+    chk%dx = sim%lp%dx
+    chk%dt = sim%lp%dt
+    allocate (chk%particles(NSTATE, merge(sim%parts%n, 0, sim%particles_on)))
+    do k = 1, size(chk%particles, 2)
+      associate (p => sim%parts%p(k))
+        chk%particles(:, k) = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
+      end associate
+    end do
+    chk%in_episode = sim%pair_on .and. sim%pair%in_episode
+    if (sim%pair_on) then
+      chk%t_start = sim%pair%t_start(1:sim%pair%n)
+      chk%t_end = sim%pair%t_end(1:sim%pair%n)
+      chk%gap_min = sim%pair%gap_min(1:sim%pair%n)
+    else
+      allocate (chk%t_start(0), chk%t_end(0), chk%gap_min(0))
+    end if
+    call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
+                          sim%cfg%given, err)
+    if (len(err) > 0) then
+      before = 'none'
+      if (allocated(sim%checkpoints)) then
+        if (size(sim%checkpoints) > 0) before = sim%checkpoints(size(sim%checkpoints))%s
+      end if
+      call output_fail(sim, err//'. The last checkpoint written is '//before)
+    end if
+    if (.not. allocated(sim%checkpoints)) allocate (sim%checkpoints(0))
+    sim%checkpoints = [sim%checkpoints, path_t(path)]
+    ok = .true.
+    if (sim%dom%rank == 0) ok = write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! batch scripts resume from the checkpoint the marker names: a stale one would lose steps
+    if (.not. ok) call output_fail(sim, 'cannot write the marker file '''//dir//'/'// &
+                                   sim%cfg%name//'.checkpoint'' naming the checkpoint '// &
+                                   path//'; check that output.dir is writable')
+    do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
+      if (sim%dom%rank == 0) call remove_file(sim%checkpoints(1)%s)
+      sim%checkpoints = sim%checkpoints(2:)
+    end do
+    call log_line('checkpoint '//path)
+  end subroutine checkpoint_save
+
+  !> The command that resumes this run from `checkpoint`: this process's arguments with
+  !! --restart replaced, under mpirun with the same rank count.
+  function resume_command(checkpoint, nranks) result(cmd)
+    character(len=*), intent(in) :: checkpoint
+    integer, intent(in) :: nranks
+    character(len=:), allocatable :: cmd, arg
+    integer :: j, length
+    logical :: skip
+    cmd = 'mpirun -n '//itoa(nranks)
+    skip = .false.
+    do j = 0, command_argument_count()
+      call get_command_argument(j, length=length)
+      allocate (character(len=length) :: arg)
+      call get_command_argument(j, arg)
+      if (skip) then
+        skip = .false.
+      else if (arg == '--restart') then
+        skip = .true.
+      else if (index(arg, '--restart=') /= 1) then
+        if (index(arg, ' ') > 0 .or. len(arg) == 0) then
+          cmd = cmd//' '''//arg//''''
+        else
+          cmd = cmd//' '//arg
+        end if
+      end if
+      deallocate (arg)
+    end do
+    cmd = cmd//' --restart '//checkpoint
+  end function resume_command
+
+end module dkt_checkpoint_policy

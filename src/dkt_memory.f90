@@ -1,0 +1,116 @@
+!> The memory one rank needs for its slab (one formula for the start-up report and the check)
+!> and the check that the ranks of one node fit in what the node gives, made before anything
+!> large is allocated.
+module dkt_memory
+  use mpi_f08, only: MPI_Comm, MPI_Bcast, MPI_Comm_size, MPI_INTEGER, MPI_Allreduce, MPI_MAX, &
+                     MPI_Comm_split_type, MPI_COMM_TYPE_SHARED, MPI_INFO_NULL, MPI_Comm_free, &
+                     MPI_IN_PLACE
+  use dkt_kinds, only: wp, pi, mpi_wp
+  use dkt_errors, only: fatal_all
+  use dkt_config, only: config_t, lattice_params_t, largest_diameter
+  use dkt_domain, only: domain_t
+  use dkt_registry, only: fmt_real
+  implicit none
+  private
+  public :: rank_memory, check_memory, fixed2, GIB, MIB
+
+  real(wp), parameter :: GIB = 2.0_wp**30, MIB = 2.0_wp**20
+
+contains
+
+  !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
+  !! memory check: (1) the two lattices f and f_next, 9 doubles per padded node (nxp columns,
+  !! nyl rows and two halo rows); (2) the particles: per-row force sums (3 doubles per row and
+  !! particle) and the boundary links, at most 8 per surface node and about pi d + 8 surface
+  !! nodes per particle of d spacings (28 bytes a link); (3) the output: the field buffer of
+  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
+  pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
+    type(config_t), intent(in) :: cfg
+    type(lattice_params_t), intent(in) :: lp
+    integer, intent(in) :: nxp, nyl
+    real(wp) :: bytes(3)
+    real(wp) :: d_cells
+    integer :: n
+    bytes(1) = 2.0_wp*9.0_wp*8.0_wp*real(nxp, wp)*real(nyl + 2, wp)
+    n = cfg%particles%count
+    bytes(2) = 0.0_wp
+    if (n > 0) then
+      d_cells = largest_diameter(cfg)/lp%dx
+      bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
+    end if
+    bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp)
+  end function rank_memory
+
+  !> Stop every rank before the lattices are allocated when the ranks of one node would need
+  !! more than it gives: run.memory_limit GiB, or (0) MemAvailable of /proc/meminfo on rank 0's
+  !! node. A node holds at most the largest count of ranks sharing one node; each rank is
+  !! counted with the largest slab. Without /proc/meminfo and with no limit, nothing is checked.
+  subroutine check_memory(cfg, lp, dom)
+    type(config_t), intent(in) :: cfg
+    type(lattice_params_t), intent(in) :: lp
+    type(domain_t), intent(in) :: dom
+    type(MPI_Comm) :: node
+    real(wp) :: bytes(3), need, avail, limit
+    integer :: node_ranks
+    character(len=:), allocatable :: source
+    character(len=160) :: msg
+    bytes = rank_memory(cfg, lp, dom%nxp, dom%nyl)
+    call MPI_Allreduce(MPI_IN_PLACE, bytes, 3, mpi_wp, MPI_MAX, dom%comm)
+    call MPI_Comm_split_type(dom%comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, node)
+    call MPI_Comm_size(node, node_ranks)
+    call MPI_Comm_free(node)
+    call MPI_Allreduce(MPI_IN_PLACE, node_ranks, 1, MPI_INTEGER, MPI_MAX, dom%comm)
+    avail = -1.0_wp
+    if (dom%rank == 0) avail = mem_available()
+    call MPI_Bcast(avail, 1, mpi_wp, 0, dom%comm)
+    if (cfg%run%memory_limit > 0.0_wp) then
+      limit = cfg%run%memory_limit*GIB
+      source = 'run.memory_limit'
+    else
+      limit = avail
+      source = 'MemAvailable in /proc/meminfo'
+    end if
+    need = real(node_ranks, wp)*sum(bytes)
+    if (limit < 0.0_wp .or. need <= limit) return
+    write (msg, '(a,i0,a,i0,a,i0,a)') ' for ', lp%nx, ' x ', lp%ny, &
+      ' cells, times ', node_ranks, ' ranks on a node = '
+    call fatal_all(trim(cfg%file)//': the run needs '//fixed2(sum(bytes)/GIB)// &
+                   ' GiB per rank (lattices '//fixed2(bytes(1)/GIB)//' GiB, particle arrays '// &
+                   fixed2(bytes(2)/GIB)//' GiB, output buffers '//fixed2(bytes(3)/GIB)// &
+                   ' GiB)'//trim(msg)//' '//fixed2(need/GIB)//' GiB, more than the '// &
+                   fixed2(limit/GIB)//' GiB allowed ('//source//'); use fewer '// &
+                   'cells: a larger lbm.dx, a smaller lbm.cells_per_diameter (it sets dx '// &
+                   'from the smallest particle; with &pair a smaller gamma) or a smaller '// &
+                   '&domain; or spread the ranks over more nodes; or set run.memory_limit '// &
+                   '(GiB) to what the run may really use')
+  end subroutine check_memory
+
+  !> x rounded to two decimals, as text ('0.05', '335.32')
+  function fixed2(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    s = fmt_real(anint(x*100.0_wp)/100.0_wp)
+  end function fixed2
+
+  !> MemAvailable of /proc/meminfo in bytes; -1 where it cannot be read.
+  function mem_available() result(bytes)
+    real(wp) :: bytes
+    character(len=256) :: line
+    integer :: u, ios
+    real(wp) :: kib
+    bytes = -1.0_wp
+    open (newunit=u, file='/proc/meminfo', status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    do
+      read (u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      if (index(line, 'MemAvailable:') == 1) then
+        read (line(14:), *, iostat=ios) kib
+        if (ios == 0) bytes = kib*1024.0_wp
+        exit
+      end if
+    end do
+    close (u)
+  end function mem_available
+
+end module dkt_memory

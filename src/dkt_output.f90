@@ -1,0 +1,412 @@
+!> The run's output files: the run file (<name>.h5: /run, fields, /particles, /diagnostics),
+!> the pair's CSV file and the log, opened (or continued after a restart) once the input is
+!> checked, written on the loop's schedule, completed and closed however the run ends.
+module dkt_output
+  use mpi_f08, only: MPI_Bcast, MPI_LOGICAL
+  use iso_fortran_env, only: compiler_version
+  use dkt_kinds, only: wp, cs2
+  use dkt_errors, only: fatal_all, fatal_local, EXIT_RUNTIME
+  use dkt_config, only: config_output_dir, config_to_namelist, kiss_thresholds, kiss_enter_cells, &
+                        pair_d1
+  use dkt_mrt, only: collision_describe
+  use dkt_fields, only: macroscopic, vorticity
+  use dkt_particles, only: particles_solid_field
+  use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
+  use dkt_window, only: window_offset
+  use dkt_io, only: io_open, io_write_run, io_write_fields, io_close, io_write_series, &
+                    io_write_table, io_write_attribute, io_reopen
+  use dkt_log, only: log_line, log_open
+  use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker
+  use dkt_registry, only: itoa
+  use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
+  use dkt_run_state, only: simulation_t
+  implicit none
+  private
+  public :: output_open, output_check_existing, output_fields, output_particles, &
+            output_pair_report, output_close, output_fail, output_final, output_scheduled, &
+            output_mark_finished
+
+  !> output fields; the particle index field only in a scene with particles
+  character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
+                                                   'vorticity', 'pressure ', 'particle ']
+  !> the /particles series besides t, one column per particle
+  character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
+                                                    'omega ', 'fx    ', 'fy    ', 'torque']
+
+contains
+
+  !> Create the output directory and file, and store the run's metadata. Called only after
+  !! every input check passed, so a bad input writes nothing.
+  subroutine output_open(sim)
+    type(simulation_t), intent(inout) :: sim
+    character(len=:), allocatable :: dir, err, nml
+    character(len=256) :: msg
+    integer :: ios
+    character(len=64) :: pnames(12)
+    real(wp) :: pvalues(12), s(0:8)
+    logical :: ok
+
+    sim%stop_reason = 'running'
+    dir = config_output_dir(sim%cfg)
+    err = ''
+    if (sim%dom%rank == 0) call make_directories(dir, err)
+    ok = len(err) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! only rank 0 knows the reason; it is the rank that prints
+    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
+                                 err//'; choose a writable output.dir')
+    if (sim%restarted) then
+      ! the output of the run that wrote the checkpoint continues, cut back to its step
+      call io_reopen(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
+                     sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, sim%samples, &
+                     [character(len=11) :: 'particles', 'diagnostics'], &
+                     sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
+                     field_names, err)
+      if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
+                                       sim%restart_from//': '//err)
+      sim%output_open = .true.
+      call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
+      if (len(err) > 0) call fatal_local(err)
+      if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
+                                                               '_diagnostics.csv')
+      if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
+      call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
+      return
+    end if
+    ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
+    ! that a file that appears meanwhile is not clobbered)
+    call output_check_existing(sim)
+    call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
+                 sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
+    if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
+    sim%output_open = .true.
+    call log_open(dir//'/'//sim%cfg%name//'.log', err)
+    if (len(err) > 0) call fatal_local(err)
+    if (sim%dom%rank == 0) then
+      call remove_file(dir//'/'//sim%cfg%name//'.finished')
+      call remove_file(dir//'/'//sim%cfg%name//'.checkpoint')
+    end if
+
+    s = collision_describe(sim%coll)
+    pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
+              'nx', 'ny', 'steps', 'mach']
+    pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
+               real(sim%lp%nx, wp), real(sim%lp%ny, wp), real(sim%lp%steps, wp), sim%lp%mach]
+    if (allocated(sim%cfg%given)) then
+      nml = sim%cfg%given            ! the input as read, before &pair and &window expanded
+    else
+      call config_to_namelist(sim%cfg, nml)
+    end if
+    call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
+                      compiler_version(), dkt_build_flags, pnames, pvalues)
+    call write_derived(sim)
+    ! replaced when the run ends; a file that still says 'running' is of a run that is going
+    ! on or was killed
+    call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
+    if (sim%pair_on .and. sim%dom%rank == 0) then
+      ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
+      open (newunit=sim%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
+            status='replace', action='write', iostat=ios, iomsg=msg)
+      if (ios /= 0) call fatal_local(trim(msg))
+      sim%csv_open = .true.
+      write (sim%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
+        'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
+    end if
+  contains
+    !> The scales and thresholds the run uses, as /run attributes, so that readers of the
+    !! file need not repeat the program's defaults: t_ref (s), h_ref = g t_ref^2 (cm), gravity
+    !! (cm/s^2), width (cm), rho_f (g/cm^3), mu (g/(cm s)); with particles d1 (cm, the larger
+    !! diameter of particles 1 and 2); with a pair the diameters of particles 1 and 2 (cm,
+    !! diameter_1, diameter_2) and the kissing thresholds in cm (kiss_enter,
+    !! kiss_release), in spacings (kiss_enter_cells, kiss_release_cells) and in D_1
+    !! (kiss_enter_d1, kiss_release_d1).
+    subroutine write_derived(sim)
+      type(simulation_t), intent(inout) :: sim
+      real(wp) :: enter, release
+      associate (c => sim%cfg, io => sim%io)
+        call io_write_attribute(io, '/run', 't_ref', c%run%t_ref)
+        call io_write_attribute(io, '/run', 'h_ref', c%particles%gravity*c%run%t_ref**2)
+        call io_write_attribute(io, '/run', 'gravity', c%particles%gravity)
+        call io_write_attribute(io, '/run', 'width', c%domain%width)
+        call io_write_attribute(io, '/run', 'rho_f', c%fluid%density)
+        call io_write_attribute(io, '/run', 'mu', c%fluid%viscosity)
+        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', pair_d1(c))
+        if (sim%pair_on) then
+          call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
+          call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
+          call kiss_thresholds(c, enter, release)
+          call io_write_attribute(io, '/run', 'kiss_enter', enter*sim%lp%dx)
+          call io_write_attribute(io, '/run', 'kiss_release', release*sim%lp%dx)
+          call io_write_attribute(io, '/run', 'kiss_enter_cells', kiss_enter_cells(c))
+          call io_write_attribute(io, '/run', 'kiss_release_cells', c%diagnostics%release_cells)
+          call io_write_attribute(io, '/run', 'kiss_enter_d1', c%diagnostics%enter_d1)
+          call io_write_attribute(io, '/run', 'kiss_release_d1', c%diagnostics%release_d1)
+        end if
+      end associate
+    end subroutine write_derived
+
+    !> Keep the header and the first `samples` rows of the CSV file, then append to it.
+    subroutine reopen_csv(path)
+      character(len=*), intent(in) :: path
+      character(len=2048), allocatable :: rows(:)
+      integer :: u, k
+      allocate (rows(sim%samples + 1))
+      open (newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
+      if (ios /= 0) call fatal_local('--restart: cannot read '//path//': '//trim(msg))
+      do k = 1, sim%samples + 1
+        read (u, '(a)', iostat=ios) rows(k)
+        if (ios /= 0) call fatal_local('--restart: '//path//' has fewer rows than the '// &
+                                       'checkpoint''s samples')
+      end do
+      close (u)
+      open (newunit=sim%csv_unit, file=path, status='replace', action='write', iostat=ios, &
+            iomsg=msg)
+      if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
+      do k = 1, sim%samples + 1
+        write (sim%csv_unit, '(a)') trim(rows(k))
+      end do
+      sim%csv_open = .true.
+    end subroutine reopen_csv
+  end subroutine output_open
+
+  !> Stop every rank when output.dir holds a file of an earlier run of this scene and
+  !! output.overwrite is off; the run makes this check before it writes, and --check makes the
+  !! same one so that it refuses what the run would refuse. A resumed run continues its files.
+  subroutine output_check_existing(sim)
+    type(simulation_t), intent(in) :: sim
+    !> the files of a run besides <name>.h5, as suffixes of the scene name
+    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
+                                                    '.xdmf           ', '_diagnostics.csv', &
+                                                    '.checkpoint     ', '.finished       ']
+    character(len=4096) :: found
+    character(len=:), allocatable :: dir
+    logical :: ok
+    integer :: k
+    if (sim%cfg%output%overwrite .or. sim%restarted) return
+    dir = config_output_dir(sim%cfg)
+    found = ''
+    if (sim%dom%rank == 0) then
+      do k = 1, size(RUN_FILES)
+        if (path_exists(dir//'/'//sim%cfg%name//trim(RUN_FILES(k)))) &
+          found = trim(found)//', '//dir//'/'//sim%cfg%name//trim(RUN_FILES(k))
+      end do
+    end if
+    ok = len_trim(found) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir// &
+                                 ''' holds files of an earlier run of this scene ('// &
+                                 trim(found(3:))//'); set output.overwrite = .true., '// &
+                                 'choose another output.dir, or resume with --restart')
+  end subroutine output_check_existing
+
+  !> Stop the run on an error all ranks detected together after the output was opened: the
+  !! output is completed up to the current step and closed with stop_reason 'error: <msg>',
+  !! then every rank exits with EXIT_RUNTIME and rank 0 prints `msg`.
+  subroutine output_fail(sim, msg)
+    type(simulation_t), intent(inout) :: sim
+    character(len=*), intent(in) :: msg
+    sim%stop_reason = 'error: '//msg
+    call output_close(sim)
+    call fatal_all(msg, EXIT_RUNTIME)
+  end subroutine output_fail
+
+  !> The output of the run's last step: the fields and the particle sample unless the
+  !! schedule wrote them, and the pair's report.
+  subroutine output_final(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (sim%fields_step /= sim%step) call output_fields(sim, sim%step)
+    if (sim%particles_on .and. sim%series_step /= sim%step) call output_particles(sim, sim%step)
+    if (sim%pair_on .and. .not. sim%reported) call output_pair_report(sim)
+  end subroutine output_final
+
+  !> The fields and the particle sample that fall on step n by output.field_interval and
+  !! output.series_interval (the last step's are written by output_final).
+  subroutine output_scheduled(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    if (sim%lp%field_every > 0) then
+      if (mod(n, sim%lp%field_every) == 0) call output_fields(sim, n)
+    end if
+    if (sim%particles_on .and. sim%lp%series_every > 0) then
+      if (mod(n, sim%lp%series_every) == 0) call output_particles(sim, n)
+    end if
+  end subroutine output_scheduled
+
+  !> The marker <name>.finished holding the last step, for batch scripts that wait for it.
+  !! Written after the output is closed: a run whose marker is there has its output complete.
+  subroutine output_mark_finished(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=:), allocatable :: path
+    logical :: ok
+    path = config_output_dir(sim%cfg)//'/'//sim%cfg%name//'.finished'
+    ok = .true.
+    if (sim%dom%rank == 0) ok = write_marker(path, itoa(sim%step))
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (.not. ok) call fatal_all('cannot write the marker file '''//path//''': the run '// &
+                                 'finished and its output is complete, but batch scripts '// &
+                                 'that wait for this file will not see it; check that '// &
+                                 'output.dir is writable', EXIT_RUNTIME)
+  end subroutine output_mark_finished
+
+  !> Complete the output of the current step (the fields and the particle sample unless they
+  !! are written, the pair's report), store why the run ended as /run stop_reason and close the
+  !! run file and the CSV file. Collective; nothing happens once the output is closed.
+  subroutine output_close(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (.not. sim%output_open) return
+    call output_final(sim)
+    call io_write_attribute(sim%io, '/run', 'stop_reason', sim%stop_reason)
+    call io_close(sim%io)
+    sim%output_open = .false.
+    if (sim%csv_open) close (sim%csv_unit)
+    sim%csv_open = .false.
+  end subroutine output_close
+
+  !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
+  !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
+  !! of the step that reached time t.
+  subroutine output_particles(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), allocatable :: v(:, :)
+    real(wp) :: dx, dt, fu, y0
+    integer :: k
+    dx = sim%lp%dx
+    dt = sim%lp%dt
+    fu = sim%cfg%fluid%density*dx**3/dt**2
+    y0 = 0.0_wp
+    ! lattice y counts from the window's lower end; the series holds absolute positions
+    if (sim%window_on) y0 = window_offset(sim%win, dx)
+    allocate (v(sim%parts%n, 8))
+    do k = 1, sim%parts%n
+      associate (p => sim%parts%p(k))
+        v(k, :) = [p%x*dx, p%y*dx + y0, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
+                   p%fy*fu, p%torque*fu*dx]
+      end associate
+    end do
+    if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
+    sim%samples = sim%samples + 1
+    sim%series_step = n
+    call io_write_series(sim%io, 'particles', ['t'], [n*dt])
+    call io_write_table(sim%io, 'particles', series_names, v)
+    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])
+    if (sim%pair_on) call write_pair(sim, n, v)
+  end subroutine output_particles
+
+  !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
+  !! (particle, quantity) in physical units as written to /particles.
+  subroutine write_pair(sim, n, v)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), intent(in) :: v(:, :)
+    real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
+    character(len=7) :: names(6)
+    character(len=1024) :: row
+    integer :: k
+    t = n*sim%lp%dt
+    rho_f = sim%cfg%fluid%density
+    mu = sim%cfg%fluid%viscosity
+    d = 2.0_wp*sim%parts%p(1:2)%r*sim%lp%dx
+    call pair_gaps(v(1, 1), v(1, 2), 0.5_wp*d(1), v(2, 1), v(2, 2), 0.5_wp*d(2), gx, gy, gr)
+    do k = 1, 2
+      re(k) = rho_f*hypot(v(k, 3), v(k, 4))*d(k)/mu
+      cd(k) = drag_coefficient(v(k, 7), v(k, 3), v(k, 4), rho_f, d(k))
+    end do
+    names = [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
+    call io_write_series(sim%io, 'diagnostics', names, &
+                         [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)])
+    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]))
+    if (sim%csv_open) then
+      write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
+        re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
+      write (sim%csv_unit, '(a)') trim(row)
+      ! kept on disk row by row: a rank that aborts the job must not take the series with it
+      flush (sim%csv_unit)
+    end if
+  end subroutine write_pair
+
+  !> At the end of a run with a pair: the pattern and its episodes into /diagnostics and the
+  !! log, with the thresholds they were found with.
+  subroutine output_pair_report(sim)
+    type(simulation_t), intent(inout) :: sim
+    real(wp) :: dx, d(2), gamma, dh
+    character(len=7), parameter :: episode_names(3) = ['start  ', 'end    ', 'gap_min']
+    character(len=256) :: line
+    character(len=:), allocatable :: pattern
+    integer :: k
+    dx = sim%lp%dx
+    pattern = pair_pattern(sim%pair)
+    sim%reported = .true.
+    associate (cp => sim%cfg%particles, e => sim%pair)
+      d = cp%diameter(1:2)
+      gamma = maxval(d)/minval(d)
+      dh = abs(cp%y(1) - cp%y(2))/maxval(d)
+      call io_write_attribute(sim%io, '/diagnostics', 'pattern', pattern)
+      call io_write_attribute(sim%io, '/diagnostics', 'episodes', e%n)
+      call io_write_attribute(sim%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter', e%enter*dx)
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release', e%release*dx)
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter_cells', &
+                              kiss_enter_cells(sim%cfg))
+      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
+                              sim%cfg%diagnostics%release_cells)
+      call io_write_attribute(sim%io, '/diagnostics', 'd1', pair_d1(sim%cfg))
+      call io_write_attribute(sim%io, '/diagnostics', 'gamma', gamma)
+      call io_write_attribute(sim%io, '/diagnostics', 'dh', dh)
+      call io_write_attribute(sim%io, '/diagnostics', 't_ref', sim%cfg%run%t_ref)
+      call io_write_attribute(sim%io, '/diagnostics', 'h_ref', &
+                              cp%gravity*sim%cfg%run%t_ref**2)
+      call io_write_attribute(sim%io, '/diagnostics', 'gravity', cp%gravity)
+      call io_write_attribute(sim%io, '/diagnostics', 'width', sim%cfg%domain%width)
+      call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
+                              merge(0, 1, sim%stop_reason == 'finished'))
+      do k = 1, e%n
+        call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
+                             [e%t_start(k), e%t_end(k), e%gap_min(k)*dx])
+      end do
+      write (line, '(a,f5.2,a,f6.2,a,i0,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
+        ', D_h/D_1 = ', dh, '; ', e%n, ' kissing episodes)'
+      call log_line(trim(line))
+      do k = 1, e%n
+        write (line, '(a,i0,a,f8.4,a,f8.4,a,f7.3,a,f7.3,a,f7.4,a)') '  episode ', k, ': t = ', &
+          e%t_start(k), ' .. ', e%t_end(k), ' s (t* = ', e%t_start(k)/sim%cfg%run%t_ref, &
+          ' .. ', e%t_end(k)/sim%cfg%run%t_ref, '), smallest D_r = ', e%gap_min(k)*dx, ' cm'
+        if (k == e%n .and. e%in_episode) line = trim(line)//', still open at the end'
+        call log_line(trim(line))
+      end do
+      write (line, '(a,f7.4,a,f5.2,a,f7.4,a,f5.2,a)') '  thresholds: enter D_r <= ', &
+        e%enter*dx, ' cm (', e%enter, ' spacings), release D_r > ', e%release*dx, ' cm (', &
+        e%release, ' spacings)'
+      call log_line(trim(line))
+    end associate
+  end subroutine output_pair_report
+
+  !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
+  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
+  subroutine output_fields(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    real(wp), allocatable :: fld(:, :, :)
+    real(wp) :: uc, y0
+    associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+      allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
+      call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
+      call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
+      uc = lp%dx/lp%dt
+      fld(:, :, 5) = cs2*(fld(:, :, 1) - 1.0_wp)*sim%cfg%fluid%density*uc*uc
+      fld(:, :, 1) = fld(:, :, 1)*sim%cfg%fluid%density
+      fld(:, :, 2:3) = fld(:, :, 2:3)*uc
+      fld(:, :, 4) = fld(:, :, 4)/lp%dt
+      y0 = 0.0_wp
+      if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
+      sim%fields_step = n
+      if (sim%particles_on) then
+        call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)
+      else
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names(1:5), fld)
+      end if
+    end associate
+  end subroutine output_fields
+
+end module dkt_output

@@ -1,0 +1,169 @@
+!> What the run tells its user on the log: the start-up summary (derived lattice, sizes,
+!> memory, models, output), a progress line now and then, and the performance at the end.
+module dkt_report
+  use mpi_f08, only: MPI_Wtime
+  use dkt_kinds, only: wp, i8
+  use dkt_errors, only: warn
+  use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob
+  use dkt_mrt, only: collision_describe
+  use dkt_log, only: log_line
+  use dkt_memory, only: rank_memory, fixed2, MIB
+  use dkt_version, only: dkt_version_string, dkt_git_revision
+  use dkt_run_state, only: simulation_t
+  implicit none
+  private
+  public :: progress_t, report_summary, report_start, report_progress, report_performance
+
+  !> the clock of the progress lines and of the performance line
+  type :: progress_t
+    integer :: first = 1        !! the first step of this process (a resumed run starts later)
+    integer :: last = 0         !! the step of the last progress line
+    real(wp) :: t_start = 0.0_wp !! wall time at the first step
+    real(wp) :: t_last = 0.0_wp  !! wall time of the last progress line
+  end type progress_t
+
+contains
+
+  !> The derived lattice parameters, sizes and models of the run, printed by rank 0 before it
+  !! starts (and by --check instead of running).
+  subroutine report_summary(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=512) :: line
+    character(len=256) :: particles, window
+    real(wp) :: s(0:8), mem(3)
+    integer :: k
+    associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
+      call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
+      write (line, '(a,a,a,i0,a)') 'scene ', trim(cfg%file), ' on ', dom%nranks, ' ranks'
+      call log_line(trim(line))
+      write (line, '(a,es12.5,a,es12.5,a,f8.5,a,es12.5)') 'lattice: dx = ', lp%dx, ' cm, dt = ', &
+        lp%dt, ' s, tau = ', lp%tau, ', nu = ', lp%nu_lb
+      call log_line(trim(line)//' (lattice units)')
+      s = collision_describe(sim%coll)
+      write (line, '(a,9(1x,f7.4))') 'rates s_0..s_8 (rho e eps jx qx jy qy pxx pxy):', s
+      call log_line(trim(line))
+      write (line, '(a,es12.4e3,a,es12.4e3,a,es12.4e3)') 'velocity scale ', &
+        lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
+      call log_line(trim(line))
+      if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
+        ! measured: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
+        ! 20, 30 and 40 spacings per diameter; with s_q = 1.2 it ran through
+        write (line, '(a,f6.3,a,f6.4,a)') 'the heat-flux rate s_q = ', sim%coll%s_q, &
+          ' (tau = ', lp%tau, ') leaves the q moments almost undamped; with moving '// &
+          'particles such runs were measured unstable. Set lbm.s_q = 1.2 (walls then sit '// &
+          'slightly off half-way), or raise lbm.tau'
+        call warn(trim(line))
+      end if
+      if (lp%mach > cfg%run%mach_limit) then
+        write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
+          ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '
+        call warn(trim(line)//' The velocity scale comes from '// &
+                  velocity_scale_source(cfg)//': lower it, or '//dx_knob(cfg)// &
+                  ' or lower lbm.tau (both shrink dt)')
+      end if
+      write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
+        int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
+      call log_line(trim(line))
+      mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
+      if (sim%particles_on) then
+        write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
+          ' boundary links on rank 0)'
+      else
+        particles = 'particles: none'
+      end if
+      window = 'window: none'
+      if (sim%window_on) then
+        write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
+          cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
+      end if
+      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB, particle arrays '// &
+             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
+             trim(particles)//'; '//trim(window)
+      call log_line(trim(line))
+      line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
+      line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
+             trim(cfg%domain%lower)//', upper end '//trim(cfg%domain%upper)
+      if (sim%coll%forced) line = trim(line)//', body force'
+      if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
+        line = trim(line)//', inlet '//trim(cfg%inlet%profile)
+      if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
+      if (sim%particles_on) then
+        line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
+               ', E7 '//trim(cfg%coupling%momentum)//', E8-E11)'
+      else
+        line = trim(line)//'; particles off'
+      end if
+      if (sim%window_on) then
+        line = trim(line)//'; window on (lower end fluid at rest, upper end outflow)'
+      else
+        line = trim(line)//'; window off'
+      end if
+      call log_line(trim(line))
+      if (sim%pair_on) then
+        write (line, '(a,f6.2,a,f6.2,a)') 'pair diagnostics: particles 1 and 2; a kissing '// &
+          'episode starts at D_r <= ', sim%pair%enter, ' spacings and ends at D_r > ', &
+          sim%pair%release, ' spacings'
+        call log_line(trim(line))
+      end if
+      k = lp%field_every
+      if (k > 0) then
+        write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
+      else
+        line = 'fields at the end'
+      end if
+      call log_line(trim(line)//' into '//config_output_dir(cfg)//'/'//cfg%name//'.h5')
+    end associate
+  end subroutine report_summary
+
+  !> Start the clock before step `first`.
+  subroutine report_start(prog, first)
+    type(progress_t), intent(out) :: prog
+    integer, intent(in) :: first
+    prog%first = first
+    prog%last = first - 1
+    prog%t_start = MPI_Wtime()
+    prog%t_last = prog%t_start
+  end subroutine report_start
+
+  !> A progress line after step n: time, t*, the Mach number `mach` the guard measured, the
+  !! speed since the last line and the time the remaining steps will take at this pace.
+  subroutine report_progress(sim, prog, n, mach)
+    type(simulation_t), intent(in) :: sim
+    type(progress_t), intent(inout) :: prog
+    integer, intent(in) :: n
+    real(wp), intent(in) :: mach
+    real(wp) :: now, mlups, eta
+    integer :: h, m, s
+    character(len=256) :: line
+    now = MPI_Wtime()
+    mlups = real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - prog%last, wp)/ &
+            max(now - prog%t_last, 1.0e-9_wp)/1.0e6_wp
+    ! the time per step of this process (a resumed run started at step first - 1)
+    eta = (now - prog%t_start)/real(n - prog%first + 1, wp)*real(sim%lp%steps - n, wp)
+    h = int(eta)/3600
+    m = mod(int(eta), 3600)/60
+    s = mod(int(eta), 60)
+    write (line, '(a,i0,a,i0,a,es11.4,a,f9.4,a,f7.4,a,f9.2,a,i0,a,i2.2,a,i2.2)') 'step ', n, &
+      '/', sim%lp%steps, '  t = ', n*sim%lp%dt, ' s  t* = ', n*sim%lp%dt/sim%cfg%run%t_ref, &
+      '  Ma = ', mach, '  MLUPS ', mlups, '  ETA ', h, ':', m, ':', s
+    call log_line(trim(line))
+    prog%last = n
+    prog%t_last = now
+  end subroutine report_progress
+
+  !> The speed of this process's steps, up to step n, in million lattice updates per second.
+  subroutine report_performance(sim, prog, n)
+    type(simulation_t), intent(in) :: sim
+    type(progress_t), intent(in) :: prog
+    integer, intent(in) :: n
+    real(wp) :: t
+    character(len=256) :: line
+    t = MPI_Wtime() - prog%t_start
+    write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
+      real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - prog%first + 1, wp)/ &
+      max(t, 1.0e-9_wp)/1.0e6_wp, ' MLUPS (', int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
+      n - prog%first + 1, ' steps in ', t, ' s on ', sim%dom%nranks, ' ranks)'
+    call log_line(trim(line))
+  end subroutine report_performance
+
+end module dkt_report
