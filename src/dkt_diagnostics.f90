@@ -75,7 +75,7 @@ contains
           write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') 'non-finite value at step ', &
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &
             ', ', y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. The run became unstable: ', &
-            'increase lbm.tau, '//dx_advice//' (smaller dt), or lower the velocity scale'
+            'increase lbm.tau, '//dx_advice//' for a smaller dt, or lower the velocity scale'
           kind = NON_FINITE
           exit scan
         end if

@@ -199,7 +199,7 @@ contains
     integer :: n
     real(wp) :: t, mach, y0
     logical :: last, stop
-    character(len=:), allocatable :: failure
+    character(len=:), allocatable :: failure, placed
 
     associate (lp => sim%lp, cfg => sim%cfg)
       if (.not. sim%restarted) then
@@ -209,9 +209,10 @@ contains
       call checkpoint_start(clock)
       call report_start(prog, sim%step + 1)
       failure = ''
+      placed = ''
       do n = sim%step + 1, lp%steps
         if (sim%particles_on) then
-          call particle_step(sim, n)
+          call particle_step(sim, n, failure)
         else
           call fluid_step(sim, n)
         end if
@@ -223,10 +224,16 @@ contains
         if (sim%pair_on) call pair_sample(sim, n)
         last = n == lp%steps .or. len(sim%stopped_early) > 0
 
-        ! a failed guard ends the loop on every rank at once; the output is written below
-        if (mod(n, cfg%run%guard_every) == 0 .or. last) then
+        ! a particle out of place or a failed guard ends the loop on every rank at once; the
+        ! output is written below. A free particle leaves the channel only when the flow has
+        ! become unstable, and then the guard's diagnosis (where, what to change) is the one
+        ! to give.
+        if (len(failure) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. last) then
+          placed = failure
           call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
                            mach, failure)
+          if (len(failure) > 0) exit
+          failure = placed
           if (len(failure) > 0) exit
         end if
         if (.not. last) call output_scheduled(sim, n)
@@ -249,7 +256,11 @@ contains
       if (len(failure) > 0) then
         ! every rank saw the same failure: write the last step's state (what went wrong is
         ! in it), close the output, then stop with the message
-        sim%stop_reason = 'guard: '//failure
+        if (failure == placed) then
+          sim%stop_reason = 'particle: '//failure
+        else
+          sim%stop_reason = 'guard: '//failure
+        end if
         call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
                       '; the output holds the run up to this step')
         call output_close(sim)
@@ -305,9 +316,11 @@ contains
   !! are set, the lattice swept, forces summed (E7), the particles moved (E8–E11) and the
   !! window moved after them (docs/model.md §5), before the boundary links are found for the
   !! next step.
-  subroutine particle_step(sim, n)
+  subroutine particle_step(sim, n, failure)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
+    character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
+    failure = ''
     call halo_start(sim%dom, sim%f)
     call fill_local_ghosts(sim%bc, sim%dom, sim%f)
     call halo_finish(sim%dom, sim%f)
@@ -322,20 +335,22 @@ contains
     call particles_move(sim%parts, sim%dom, sim%f_next, &
                         sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
     if (sim%window_on) call follow_particles(sim, n)
-    if (sim%particles_move) call check_particle_places(sim, n)
-    if (sim%particles_move) call particles_find_links(sim%parts, sim%dom)
+    if (sim%particles_move) call check_particle_places(sim, n, failure)
+    ! (links of a particle outside the lattice do not exist: the loop stops instead)
+    if (sim%particles_move .and. len(failure) == 0) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
 
-  !> Stop every rank when a particle left the lattice (its centre beyond a side or an end), a
-  !! prescribed particle reached a wall, or a prescribed particle entered another body: a
-  !! fixed or prescribed one at contact, a free one deeper than the larger radius (a free
-  !! particle normally makes way; one pinned against a wall cannot). The input check refuses
+  !> Why the run must stop ('' if it need not): a particle left the lattice (its centre beyond
+  !! a side or an end), a prescribed particle reached a wall, or a prescribed particle entered
+  !! another body: a fixed or prescribed one at contact, a free one deeper than the larger
+  !! radius (a free particle normally makes way; one pinned against a wall cannot). The input check refuses
   !! what a constant prescribed velocity makes predictable; this catches what it cannot
   !! (a moving window, free particles). Every rank holds the same particle states, so every
-  !! rank stops at the same step.
-  subroutine check_particle_places(sim, n)
+  !! rank returns the same failure at the same step and the loop stops them together.
+  subroutine check_particle_places(sim, n, failure)
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
+    character(len=:), allocatable, intent(out) :: failure
     real(wp) :: nx, ny, y0, dist, reach
     integer :: k, m
     character(len=:), allocatable :: what
@@ -377,11 +392,13 @@ contains
         write (where, '(a,es12.5,a,es12.5,a,i0,a,es12.5,a)') ' at (x, y) = (', &
           p%x*sim%lp%dx, ',', p%y*sim%lp%dx + y0, ') cm, step ', n, ' (t = ', n*sim%lp%dt, ' s)'
       end associate
-      call fatal_all(trim(sim%cfg%file)//': particle '//itoa(k)//' (motion = '// &
-                     quoted_motion(sim%cfg%particles%motion(k))//'): '//what//trim(where)// &
-                     '; the run stops. Change its velocity or start (&particles u, v, x, y of '// &
-                     'particle '//itoa(k)//'), or end the run earlier', EXIT_RUNTIME)
+      failure = trim(sim%cfg%file)//': particle '//itoa(k)//' (motion = '// &
+                quoted_motion(sim%cfg%particles%motion(k))//'): '//what//trim(where)// &
+                '; the run stops. Change its velocity or start (&particles u, v, x, y of '// &
+                'particle '//itoa(k)//'), or end the run earlier'
+      return
     end do
+    failure = ''
   contains
     function quoted_motion(m) result(q)
       character(len=*), intent(in) :: m

@@ -26,6 +26,7 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import h5py
 import pytest
 
 from dkt_run import EXE, INPUT, ROOT, mpi_env, run_args
@@ -782,7 +783,8 @@ def test_a_prescribed_particle_leaving_the_window_stops_the_run_naming_it(
     prescribed particle 2 sinks at 6 cm/s, faster than particle 1 settles, and passes the
     window's lower end. The run stops (exit status 3, one message) naming particle 2, its
     position, which lies on its straight path (x = 0.5, y = 4 - 6 t), and the time. Catches a
-    particle that leaves the lattice silently (the run used to go on, exit 0)."""
+    particle that leaves the lattice silently (the run used to go on, exit 0), and a stop that
+    loses the output computed before it."""
     outdir = tmp_path / "out"
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -818,6 +820,12 @@ def test_a_prescribed_particle_leaving_the_window_stops_the_run_naming_it(
     assert t > 0.0
     assert x == pytest.approx(0.5, abs=1e-5)
     assert y == pytest.approx(4.0 - 6.0 * t, abs=1e-4)
+    # the stop is collective like a guard's: the output is kept up to that step and says why
+    with h5py.File(outdir / "single.h5", "r") as h5:
+        reason = h5["run"].attrs["stop_reason"]
+        reason = reason.decode() if isinstance(reason, bytes) else str(reason)
+        assert reason.startswith("particle: ") and "particle 2" in reason, reason
+        assert h5["particles/t"][-1] == pytest.approx(t, rel=1e-9)
 
 
 def test_readme_preview_has_an_output_dir_of_its_own() -> None:
