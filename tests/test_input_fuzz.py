@@ -31,19 +31,15 @@ cleanly as above; never a crash (signal, runtime error text), never a hang.
 from __future__ import annotations
 
 import hashlib
-import os
 import random
 import re
-import signal
-import subprocess
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env, session_pids
+from dkt_run import INPUT, ROOT, run_args
 
 RANKS = 2
 TIMEOUT = 20.0  # s; each case stops during set-up (about 0.4 s), longer is a hang
@@ -84,41 +80,13 @@ def poiseuille() -> str:
     return text.replace("t_end = 2000.0", "steps = 5")
 
 
-def run_bytes(args: list[str], ranks: int, cwd: Path) -> subprocess.CompletedProcess[str]:
-    """dktlbm `args` on `ranks` ranks in `cwd`; like dkt_run.run_args, but output that is not
-    UTF-8 (a scene of binary garbage echoed in a message) is decoded with replacements
-    instead of failing the test. A job still going after TIMEOUT is killed: a hang."""
-    cmd = [*mpi_command(ranks), str(EXE), *args]
-    proc = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        env={**mpi_env(), **ENV},
-        cwd=cwd,
-        start_new_session=True,
-    )
-    try:
-        out, err = proc.communicate(timeout=TIMEOUT)
-    except subprocess.TimeoutExpired:
-        proc.terminate()  # mpiexec passes SIGTERM on to the ranks
-        time.sleep(2.0)
-        for pid in session_pids(proc.pid):
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        proc.communicate()
-        raise AssertionError(f"hang: no exit within {TIMEOUT} s: {' '.join(cmd)}") from None
-    text = [b.decode("utf-8", errors="replace") for b in (out, err)]
-    return subprocess.CompletedProcess(cmd, proc.returncode, *text)
-
-
 def tree_digest(path: Path) -> dict[str, str]:
     """sha256 of every file below path, by relative name (directories as 'dir')."""
-    return {
-        str(p.relative_to(path)): "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(path.rglob("*"))
-    }
+    digest = {}
+    for p in sorted(path.rglob("*")):
+        rel = str(p.relative_to(path))
+        digest[rel] = "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
+    return digest
 
 
 def populate(outdir: Path) -> dict[str, str]:
@@ -581,7 +549,7 @@ def test_bad_input_class(tmp_path: Path, case: Bad) -> None:
 
     if case.last:
         args += case.last
-    proc = run_bytes(args, case.ranks, cwd)
+    proc = run_args(args, case.ranks, TIMEOUT, cwd, ENV)
     msg = assert_clean_refusal(proc, outdir, before, cwd, case.status)
     assert blocker.read_text() == "not a directory\n"
 
