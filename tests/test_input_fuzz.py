@@ -303,6 +303,19 @@ CASES: dict[str, Bad] = {
         base="single.nml",
         pieces=["{file}:{line}:", "&particles", "x(1:4:0)", "stride"],
     ),
+    # 99999999999 is a whole number, too large for the index: the message must say out of range
+    "index-beyond-the-integer-range": Bad(
+        ("x = 1.0", "x(99999999999) = 1.0"),
+        base="single.nml",
+        pieces=["{file}:{line}:", "&particles", "x(99999999999)", "x(1) to x(16)"],
+        xfail="an index too large for an integer (x(99999999999)) is called 'not a whole "
+        "number' instead of out of range with x(1) to x(16)",
+    ),
+    "repeat-count-beyond-the-integer-range": Bad(
+        ("diameter = 0.25", "diameter = 2147483648*0.25"),
+        base="single.nml",
+        pieces=["{file}:{line}:", "&particles", "diameter", "2147483648", "repeat count"],
+    ),
     "index-not-whole": Bad(
         ("x = 1.0", "x(1.5) = 1.0"),
         base="single.nml",
@@ -417,10 +430,10 @@ CASES: dict[str, Bad] = {
     ),
     "memory-limit-below-the-need": Bad(
         args=S("run.memory_limit", "1e-6"),
-        pieces=["--set run.memory_limit=1e-6", "run.memory_limit", "GiB", "20 x 6 cells"],
+        pieces=["{file}", "run.memory_limit", "GiB", "20 x 6 cells"],
         extra=lambda msg: need_exceeds_limit(msg, 1e-6),
-        xfail="a small need and limit print as '0.0 GiB ... more than the 0.0 GiB allowed' "
-        "(fixed 2 decimals), and the message names no --set option or file line",
+        xfail="a need and a limit below 0.005 GiB print as 'needs 0.0 GiB ... more than the "
+        "0.0 GiB allowed' (two fixed decimals)",
     ),
     "pair-gamma-100-memory": Bad(
         args=S("pair.gamma", "100"),
@@ -706,3 +719,32 @@ def test_mutated_scene_is_accepted_or_refused_cleanly(
         return
     msg = assert_clean_refusal(proc, outdir, before, cwd, EXIT_INPUT)
     assert str(path) in msg, f"the message does not name the scene file:\n{msg}"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="a UTF-8 byte-order mark at the start of a scene (as some editors save it) is "
+    "refused as \"'<3 raw bytes>' is outside a group\" instead of being skipped or named",
+)
+def test_a_byte_order_mark_is_skipped_or_named(tmp_path: Path) -> None:
+    """input/poiseuille.nml saved with a UTF-8 byte-order mark: --check accepts it (the mark
+    is not part of the namelist), or refuses it with one message that calls it a byte-order
+    mark. Catches a refusal that echoes three invisible bytes as a key outside a group. The
+    same file with CRLF line ends and tabs is the control: accepted."""
+    text = (INPUT / "poiseuille.nml").read_text()
+    control, outdir, before, cwd = prepare(tmp_path, "crlf.nml", text.replace("\n", "\r\n"))
+    ok = run_args(
+        [str(control), "--check", "--set", f"output.dir={outdir}"], RANKS, TIMEOUT, cwd, ENV
+    )
+    assert_no_crash(ok)
+    assert ok.returncode == 0, ok.stderr
+    scene = tmp_path / "bom.nml"
+    scene.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    proc = run_args(
+        [str(scene), "--check", "--set", f"output.dir={outdir}"], RANKS, TIMEOUT, cwd, ENV
+    )
+    assert_no_crash(proc)
+    if proc.returncode != 0:
+        msg = assert_clean_refusal(proc, outdir, before, cwd, EXIT_INPUT)
+        assert "byte-order mark" in msg or "BOM" in msg, msg
+    assert tree_digest(outdir) == before and list(cwd.iterdir()) == []
