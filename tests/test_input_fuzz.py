@@ -552,6 +552,12 @@ def test_bad_input_class(tmp_path: Path, case: Bad) -> None:
     names the file, group.key, value (and range), within TIMEOUT, nothing written. Catches a
     crash, a hang, a per-rank or missing message, a message without the key or value, and
     output written before the input was validated."""
+    refuse(tmp_path, case, case.check)
+
+
+def refuse(tmp_path: Path, case: Bad, check: bool) -> str:
+    """Run `case` (with --check if `check`) in tmp_path, assert the whole contract; returns
+    the message with tmp_path replaced by '<tmp>'."""
     text = (INPUT / case.base).read_text() if case.base else poiseuille()
     line = next_line = 0
     if case.edit is not None:
@@ -576,7 +582,7 @@ def test_bad_input_class(tmp_path: Path, case: Bad) -> None:
         args = [a for a in args if a]
     if case.file:
         args = [str(scene), *args]
-    if case.check:
+    if check:
         args.append("--check")
     if not any(a.startswith("output.dir=") for a in args):
         args += ["--set", f"output.dir={outdir}"]
@@ -597,6 +603,33 @@ def test_bad_input_class(tmp_path: Path, case: Bad) -> None:
         assert piece in msg, f"{piece!r} missing from the message:\n{msg}"
     if case.extra is not None:
         case.extra(msg)
+    return msg.replace(str(tmp_path), "<tmp>")
+
+
+# a refusal of each kind: a range, a name, a syntax error, a joint rule, a particle path, the
+# memory of gamma = 100 (the run would try to allocate hundreds of GiB without the check)
+ALIKE = [
+    "tau-equal-0.5",
+    "unknown-group",
+    "repeat-count-zero",
+    "particles-overlapping",
+    "pair-dh-inside-contact",
+    "prescribed-particle-leaving-the-channel",
+    "pair-gamma-100-memory",
+]
+
+
+@pytest.mark.parametrize("name", ALIKE)
+def test_the_run_refuses_like_check(tmp_path: Path, name: str) -> None:
+    """The classes above mostly use --check; the run itself must refuse the same input with
+    the same message, before it writes anything (output.dir and the working directory stay
+    as they were). Catches a check that only --check makes, or a run that writes its output
+    files before validating."""
+    (tmp_path / "check").mkdir()
+    (tmp_path / "run").mkdir()
+    by_check = refuse(tmp_path / "check", CASES[name], check=True)
+    by_run = refuse(tmp_path / "run", CASES[name], check=False)
+    assert by_run == by_check
 
 
 def test_there_are_at_least_40_classes() -> None:
