@@ -629,7 +629,9 @@ def test_the_run_refuses_like_check(tmp_path: Path, name: str) -> None:
     (tmp_path / "run").mkdir()
     by_check = refuse(tmp_path / "check", CASES[name], check=True)
     by_run = refuse(tmp_path / "run", CASES[name], check=False)
-    assert by_run == by_check
+    # MemAvailable (the limit when run.memory_limit = 0) moves between the two runs
+    free = re.compile(r"[0-9.]+ GiB allowed \(MemAvailable")
+    assert free.sub("", by_run) == free.sub("", by_check)
 
 
 def test_there_are_at_least_40_classes() -> None:
