@@ -249,8 +249,12 @@ CASES: dict[str, Bad] = {
     # ---- ranges of single keys (README's allowed column) ----
     "tau-equal-0.5": Bad(args=S("lbm.tau", "0.5"), key="lbm.tau", rng=True),
     "tau-above-10": Bad(args=S("lbm.tau", "10.5"), key="lbm.tau", rng=True),
-    "negative-width": Bad(("width = 1.0", "width = -1.0"), key="domain.width", rng=True),
-    "zero-height": Bad(("height = 0.3", "height = 0"), key="domain.height", rng=True),
+    "negative-width": Bad(
+        ("width = 1.0", "width = -1.0"), key="domain.width", rng=True, pieces=["width = -1.0"]
+    ),
+    "zero-height": Bad(
+        ("height = 0.3", "height = 0"), key="domain.height", rng=True, pieces=["height = 0"]
+    ),
     "mrt-rate-2": Bad(args=S("lbm.s_e", "2.0"), key="lbm.s_e", rng=True),
     "mach-limit-0": Bad(args=S("run.mach_limit", "0"), key="run.mach_limit", rng=True),
     "guard-every-0": Bad(args=S("run.guard_every", "0"), key="run.guard_every", rng=True),
@@ -621,6 +625,8 @@ def refuse(tmp_path: Path, case: Bad, check: bool) -> str:
         pieces += [f"&{group}", key]
         if case.rng:
             pieces.append(ALLOWED[case.key])
+        # a value given by --set: the message names the option, and so the value
+        pieces += [f"--set {a}" for a in case.args if a.startswith(f"{case.key}=")]
     for piece in pieces:
         assert piece in msg, f"{piece!r} missing from the message:\n{msg}"
     if case.extra is not None:
