@@ -112,14 +112,16 @@ def run_args(
 ) -> subprocess.CompletedProcess[str]:
     """Run dktlbm with the raw command-line `args` on `ranks` ranks (in directory `cwd`, with the
     extra environment variables `env`); return the finished process whatever its exit status.
-    A run still going after `timeout` s is a hang: mpiexec and every rank are killed and
-    AssertionError is raised."""
+    Output that is not UTF-8 (a scene of binary garbage echoed in a message) is decoded with
+    replacement characters rather than failing the caller. A run still going after `timeout` s
+    is a hang: mpiexec and every rank are killed and AssertionError is raised."""
     cmd = [*mpi_command(ranks), str(EXE), *args]
     proc = subprocess.Popen(
         cmd,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        errors="replace",
         env={**mpi_env(), **(env or {})},
         cwd=cwd,
         start_new_session=True,
