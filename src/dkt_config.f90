@@ -170,6 +170,20 @@ module dkt_config
     type(output_cfg_t) :: output
   end type config_t
 
+  !> The particles of a scene in lattice units (docs/model.md §3-4), element k for particle k:
+  !! everything the particle state is built from, converted once with the other units.
+  type, public :: particles_lb_t
+    real(wp), allocatable :: x(:), y(:)       !! centre; y from the lower end of the lattice
+                                               !! (the window's at t = 0), positions absolute
+    real(wp), allocatable :: r(:)             !! radius
+    real(wp), allocatable :: u(:), v(:)       !! initial (or prescribed) velocity
+    real(wp), allocatable :: omega(:)         !! initial (or prescribed) spin, per time step
+    real(wp), allocatable :: density(:)       !! rho_p/rho_f: mass per lattice area (E8)
+    real(wp) :: gravity = 0.0_wp              !! along -y, spacings per step^2 (E9)
+    real(wp) :: stiffness = 0.0_wp            !! eps_p of E10 per unit depth, lattice units
+    real(wp) :: stiffness_overlap = 0.0_wp    !! eps'_p of E10 per unit depth, lattice units
+  end type particles_lb_t
+
   !> Lattice-unit parameters derived from a valid configuration (derive_lattice).
   type, public :: lattice_params_t
     real(wp) :: dx = 0.0_wp          !! cm, lattice spacing
@@ -190,6 +204,7 @@ module dkt_config
     real(wp) :: reynolds = 0.0_wp    !! U width / nu with U = u_scale_lb dx/dt (physical)
     real(wp) :: cells_per_diameter = 0.0_wp !! smallest used diameter / dx; 0 without particles
     logical :: particles_on = .false. !! the scene has particles (count > 0)
+    type(particles_lb_t) :: particles !! particles 1..count in lattice units
   end type lattice_params_t
 
   !> The command line: dktlbm FILE [--set g.k=v ...] [--check] [--print-defaults] [--help]
@@ -1298,12 +1313,42 @@ contains
     lp%cells_per_diameter = 0.0_wp
     if (lp%particles_on) &
       lp%cells_per_diameter = minval(c%particles%diameter(1:c%particles%count))/lp%dx
+    call particles_to_lattice(c, lp%dx, lp%dt, lp%particles)
   contains
     pure integer function count_of(x)
       real(wp), intent(in) :: x
       count_of = nint(min(x, real(huge(1), wp) - 1.0_wp))
     end function count_of
   end function lattice_from
+
+  !> Particles 1..count of `c` in lattice units of spacing `dx` (cm) and step `dt` (s):
+  !! positions from the lattice's lower end (the window's at t = 0) over dx, radii over dx,
+  !! velocities times dt/dx, spins times dt, densities over the fluid's, gravity times dt^2/dx,
+  !! and the E10 stiffnesses eps_p in cm^2 s^2/(g/cm) and eps'_p in cm s^2/(g/cm) per unit
+  !! depth.
+  subroutine particles_to_lattice(c, dx, dt, lb)
+    type(config_t), intent(in) :: c
+    real(wp), intent(in) :: dx, dt
+    type(particles_lb_t), intent(out) :: lb
+    real(wp) :: y0, rho_f
+    integer :: n
+    n = c%particles%count
+    rho_f = c%fluid%density
+    y0 = 0.0_wp
+    if (c%window%enabled .and. n > 0) y0 = window_bottom(c)
+    associate (p => c%particles, col => c%collision)
+      lb%x = p%x(1:n)/dx
+      lb%y = (p%y(1:n) - y0)/dx
+      lb%r = 0.5_wp*p%diameter(1:n)/dx
+      lb%u = p%u(1:n)*dt/dx
+      lb%v = p%v(1:n)*dt/dx
+      lb%omega = p%omega(1:n)*dt
+      lb%density = p%density(1:n)/rho_f
+      lb%gravity = p%gravity*dt*dt/dx
+      lb%stiffness = col%stiffness*rho_f/dt**2
+      lb%stiffness_overlap = col%stiffness_overlap*rho_f*dx/dt**2
+    end associate
+  end subroutine particles_to_lattice
 
   !> The whole configuration as namelist text that config_load reads back: one key per line,
   !! each with '! [unit] default: ..; allowed: ..; meaning'. For --print-defaults and the

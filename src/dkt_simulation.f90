@@ -111,13 +111,9 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer :: n, k
     integer, allocatable :: motion(:)
-    real(wp) :: dx, dt, rho_f, y0
     integer :: scheme
     character(len=256) :: line
     n = sim%cfg%particles%count
-    dx = sim%lp%dx
-    dt = sim%lp%dt
-    rho_f = sim%cfg%fluid%density
     allocate (motion(n))
     do k = 1, n
       select case (trim(sim%cfg%particles%motion(k)))
@@ -131,17 +127,11 @@ contains
     case ('bfl'); scheme = BB_BFL
     case default; scheme = BB_YU
     end select
-    y0 = 0.0_wp
-    if (sim%window_on) y0 = sim%win%y_origin ! positions are absolute, rows count from here
-    associate (p => sim%cfg%particles, c => sim%cfg%collision)
-      ! E10 stiffnesses: eps_p in cm^2 s^2/(g/cm) and eps'_p in cm s^2/(g/cm) per unit depth
-      call particles_init(sim%parts, sim%dom, p%x(1:n)/dx, (p%y(1:n) - y0)/dx, &
-                          0.5_wp*p%diameter(1:n)/dx, &
-                          p%u(1:n)*dt/dx, p%v(1:n)*dt/dx, p%omega(1:n)*dt, &
-                          p%density(1:n)/rho_f, motion, scheme, &
-                          sim%cfg%coupling%momentum == 'galilean', p%gravity*dt*dt/dx, &
-                          c%stiffness*rho_f/dt**2, c%stiffness_overlap*rho_f*dx/dt**2, c%range, &
-                          c%substeps)
+    ! lattice units throughout (lattice_from); y counts from the window's lower end at t = 0
+    associate (p => sim%lp%particles, c => sim%cfg%collision)
+      call particles_init(sim%parts, sim%dom, p%x, p%y, p%r, p%u, p%v, p%omega, p%density, &
+                          motion, scheme, sim%cfg%coupling%momentum == 'galilean', p%gravity, &
+                          p%stiffness, p%stiffness_overlap, c%range, c%substeps)
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
     ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so
