@@ -458,8 +458,6 @@ CASES: dict[str, Bad] = {
         args=S("run.memory_limit", "1e-6"),
         pieces=["{file}", "run.memory_limit", "GiB", "20 x 6 cells"],
         extra=lambda msg: need_exceeds_limit(msg, 1e-6),
-        xfail="a need and a limit below 0.005 GiB print as 'needs 0.0 GiB ... more than the "
-        "0.0 GiB allowed' (two fixed decimals)",
     ),
     "pair-gamma-100-memory": Bad(
         args=S("pair.gamma", "100"),
