@@ -697,32 +697,34 @@ contains
     end subroutine digits_at
   end function real_form
 
-  !> Is `text` a whole number ([sign]digits) too large for an integer? An index so written is
-  !! out of range rather than 'not a whole number'.
-  logical function too_large(text)
+  !> Is `text` written as a whole number, [sign]digits (of any size)?
+  pure logical function digits_form(text)
     character(len=*), intent(in) :: text
-    integer :: i, p
-    too_large = .false.
+    integer :: p
+    digits_form = .false.
     p = 1
     if (len(text) == 0) return
     if (text(1:1) == '+' .or. text(1:1) == '-') p = 2
     if (p > len(text)) return
-    if (verify(text(p:), '0123456789') /= 0) return
-    too_large = .not. whole_number(text, i)
+    digits_form = verify(text(p:), '0123456789') == 0
+  end function digits_form
+
+  !> Is `text` a whole number too large for an integer? An index so written is out of range
+  !! rather than 'not a whole number'.
+  logical function too_large(text)
+    character(len=*), intent(in) :: text
+    integer :: i
+    too_large = digits_form(text) .and. .not. whole_number(text, i)
   end function too_large
 
   !> Is `text` a whole number ([sign]digits) that fits an integer? Then `i` is its value.
   logical function whole_number(text, i)
     character(len=*), intent(in) :: text
     integer, intent(out) :: i
-    integer :: p, ios
+    integer :: ios
     i = 0
     whole_number = .false.
-    p = 1
-    if (len(text) == 0) return
-    if (text(1:1) == '+' .or. text(1:1) == '-') p = 2
-    if (p > len(text)) return
-    if (verify(text(p:), '0123456789') /= 0) return
+    if (.not. digits_form(text)) return
     read (text, *, iostat=ios) i
     whole_number = ios == 0
   end function whole_number
