@@ -17,6 +17,7 @@ module dkt_registry
   public :: find_key, has_group, origin_of, unknown_group_hint, unknown_key_hint, check_key
   public :: value_text, allowed_text, type_name, text_length, fmt_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
+  public :: printable
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
                         KEY_CHOICE = 5
@@ -458,6 +459,43 @@ contains
     end do
     q = q//''''
   end function quoted
+
+  !> `text` with every byte a terminal would not show as written replaced by its hex code in
+  !! angle brackets: control bytes (ESC is <1b>, NUL <00>, DEL <7f>, also tab and line ends)
+  !! and bytes that are not part of a valid UTF-8 character (a stray Latin-1 byte). Messages
+  !! quote the user's input through it, so that an invisible byte can neither hide in the
+  !! message ('tau = 1.0<1b> is not a real number') nor act on the terminal.
+  function printable(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    integer :: j, b, n, m
+    character(len=*), parameter :: HEX = '0123456789abcdef'
+    s = ''
+    j = 1
+    do while (j <= len(text))
+      b = iachar(text(j:j))
+      n = 0 ! the continuation bytes of a UTF-8 character that starts with byte b
+      if (b >= 194 .and. b <= 223) n = 1
+      if (b >= 224 .and. b <= 239) n = 2
+      if (b >= 240 .and. b <= 244) n = 3
+      if (n > 0 .and. j + n <= len(text)) then
+        do m = 1, n
+          if (iachar(text(j + m:j + m)) < 128 .or. iachar(text(j + m:j + m)) > 191) n = 0
+        end do
+        if (n > 0) then
+          s = s//text(j:j + n)
+          j = j + n + 1
+          cycle
+        end if
+      end if
+      if (b < 32 .or. b >= 127) then
+        s = s//'<'//HEX(b/16 + 1:b/16 + 1)//HEX(mod(b, 16) + 1:mod(b, 16) + 1)//'>'
+      else
+        s = s//text(j:j)
+      end if
+      j = j + 1
+    end do
+  end function printable
 
   function itoa(i) result(s)
     integer, intent(in) :: i
