@@ -156,10 +156,12 @@ contains
             it = it + 1
           end do
           if (it <= nt) then ! key = 'text: the string is not closed
-            if (toks(it)%kind == TOK_BAD) then
-              err = loc//': &'//g//' '//name//' = '//join_values(vals(1:nv))
+            if (toks(it)%kind == TOK_BAD) then ! at the line of the quote or '(' not closed
+              err = at(file, toks(it)%line)//': &'//g//' '//name//' = '//join_values(vals(1:nv))
               if (nv > 0) err = err//', '
-              err = err//toks(it)%text//': '//bad_text(toks(it), '')//quote_hint(vals(1:nv))
+              err = err//toks(it)%text//': '//bad_text(toks(it), '')
+              ! unless the tokenizer already named a string that ran over lines
+              if (index(toks(it)%why, 'several lines') == 0) err = err//quote_hint(vals(1:nv))
               return
             end if
           end if

@@ -417,8 +417,6 @@ CASES: dict[str, Bad] = {
     "fewer-than-3-cells": Bad(
         args=S("domain.width", "0.1"),
         pieces=["--set domain.width=0.1", "&domain", "width = 0.1", "3"],
-        xfail="the nx >= 3 message cites the file line of dx, not the --set domain.width "
-        "option that gave the width",
     ),
     "density-1e-320": Bad(
         ("density = 1.0", "density = 1e-320"),
@@ -466,8 +464,6 @@ CASES: dict[str, Bad] = {
         args=S("particles.diameter(1)", "0.03"),
         base="single.nml",
         pieces=["--set particles.diameter(1)=0.03", "&particles", "diameter(1)", "4", "dx"],
-        xfail="the cells-per-diameter message names the file line of the scene's diameter "
-        "(= 0.25) as the origin of diameter(1) = 0.03, not the --set option that gave it",
     ),
     "fixed-particle-moving": Bad(
         args=S("particles.motion(1)", "fixed") + S("particles.v(1)", "-1"),
@@ -517,8 +513,6 @@ CASES: dict[str, Bad] = {
         args=S("diagnostics.enter_d1", "0.5"),
         base="case1.nml",
         pieces=["--set diagnostics.enter_d1=0.5", "&diagnostics", "enter_d1 = 0.5", "release"],
-        xfail="release-below-entry names only release_cells and release_d1: neither the "
-        "key that was changed (enter_d1 = 0.5) nor the --set option or a file line",
     ),
     # ---- parallel layout and output ----
     # 0.15 cm / 0.05 cm = 3 rows; a slab needs 2 rows, so 2 ranks are too many
