@@ -481,7 +481,8 @@ contains
     integer, intent(in) :: n
     integer, intent(out) :: first, step, count
     character(len=:), allocatable, intent(out) :: why
-    character(len=:), allocatable :: des, range_text, part(:)
+    character(len=:), allocatable :: des, range_text
+    character(len=len(sub)) :: part(3) !! lower bound, upper bound, stride as written
     character(len=11), parameter :: WHAT(3) = ['lower bound', 'upper bound', 'stride     ']
     integer :: c1, c2, v(3), j, last
     des = base//'('//sub//')'
@@ -753,7 +754,7 @@ contains
     spanned = 0
     ! A UTF-8 byte-order mark, as some editors save a file, is not part of the namelist.
     if (n >= 3) then
-      if (text(1:3) == achar(239)//achar(187)//achar(191)) p = 4
+      if (text(1:3) == char(239)//char(187)//char(191)) p = 4
     end if
     do while (p <= n)
       c = text(p:p)

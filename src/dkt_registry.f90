@@ -509,14 +509,14 @@ contains
     s = ''
     j = 1
     do while (j <= len(text))
-      b = iachar(text(j:j))
+      b = ichar(text(j:j))
       n = 0 ! the continuation bytes of a UTF-8 character that starts with byte b
       if (b >= 194 .and. b <= 223) n = 1
       if (b >= 224 .and. b <= 239) n = 2
       if (b >= 240 .and. b <= 244) n = 3
       if (n > 0 .and. j + n <= len(text)) then
         do m = 1, n
-          if (iachar(text(j + m:j + m)) < 128 .or. iachar(text(j + m:j + m)) > 191) n = 0
+          if (ichar(text(j + m:j + m)) < 128 .or. ichar(text(j + m:j + m)) > 191) n = 0
         end do
         if (n > 0) then
           s = s//text(j:j + n)

@@ -1109,7 +1109,7 @@ contains
                       [character(len=60) :: 'input/test.nml:1:', '&domain', 'width = 1e999', &
                        'not a finite real number', 'width > 0'])
     ! a byte-order mark was once refused as "'<3 bytes>' is outside a group"
-    call load_ok('a leading byte-order mark', achar(239)//achar(187)//achar(191)// &
+    call load_ok('a leading byte-order mark', char(239)//char(187)//char(191)// &
                  '&lbm tau = 0.7 /', cfg)
     call check('a leading byte-order mark: tau is read', same(cfg%lbm%tau, 0.7_wp))
     ! width from --set, dx from line 2: the message once cited line 2 for width = 0.1
@@ -1127,10 +1127,10 @@ contains
                printable('tau = 1.0'//achar(27)//achar(0)//achar(127)) == &
                'tau = 1.0<1b><00><7f>')
     call check('printable: a stray Latin-1 byte as its code', &
-               printable('ta'//achar(233)//' = 1') == 'ta<e9> = 1')
+               printable('ta'//char(233)//' = 1') == 'ta<e9> = 1')
     call check('printable: a UTF-8 character kept', &
-               printable('mu = 1 '//achar(194)//achar(181)//'m') == &
-               'mu = 1 '//achar(194)//achar(181)//'m')
+               printable('mu = 1 '//char(194)//char(181)//'m') == &
+               'mu = 1 '//char(194)//char(181)//'m')
   end subroutine test_input_defects
 
 end program test_config
