@@ -10,7 +10,7 @@ module dkt_config
   use dkt_mrt, only: e3_heat_flux_rate
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
-                          allowed_text, origin_of, quoted, fmt_real, itoa
+                          allowed_text, origin_of, blame, quoted, fmt_real, itoa
   use dkt_namelist, only: parse_namelist, apply_override
   implicit none
   private
@@ -476,7 +476,7 @@ contains
     associate (p => c%particles, q => c%pair)
       if (q%gamma > 0.0_wp) then
         if (p%count > 0) then
-          err = origin_of(reg, 'particles', 'count', c%file)//': &pair gamma = '// &
+          err = blame(reg, 'particles.count pair.gamma', c%file)//': &pair gamma = '// &
                 fmt_real(q%gamma)//' and &particles count = '//itoa(p%count)//': a pair '// &
                 'scene sets its two particles itself; allowed: count = 0 with gamma > 0, '// &
                 'or gamma = 0 to take the particles from &particles'
@@ -499,7 +499,7 @@ contains
       end if
       if (c%lbm%cells_per_diameter > 0.0_wp) then
         if (p%count == 0) then
-          err = origin_of(reg, 'lbm', 'cells_per_diameter', c%file)// &
+          err = blame(reg, 'lbm.cells_per_diameter particles.count', c%file)// &
                 ': &lbm cells_per_diameter = '//fmt_real(c%lbm%cells_per_diameter)// &
                 ' in a scene without particles; allowed: 0 (set dx instead), or particles'
           return
@@ -511,7 +511,8 @@ contains
       end if
       if (c%window%enabled) then
         if (count(p%motion(1:p%count) == 'free') == 0) then
-          err = origin_of(reg, 'window', 'enabled', c%file)//': &window enabled = .true. '// &
+          err = blame(reg, 'window.enabled particles.motion particles.count', c%file)// &
+                ': &window enabled = .true. '// &
                 'with '//itoa(count(p%motion(1:p%count) == 'free'))//' free particles '// &
                 '(count = '//itoa(p%count)//'): the window follows the lowest '// &
                 'free particle; allowed: a scene with free particles (&particles or &pair)'
@@ -685,7 +686,8 @@ contains
 
     associate (d => c%domain)
       if ((d%lower == 'periodic') .neqv. (d%upper == 'periodic')) then
-        err = src(merge('lower', 'upper', d%lower == 'periodic'), 'domain')// &
+        err = from('domain.'//merge('lower', 'upper', d%lower == 'periodic')// &
+                   ' domain.lower domain.upper')// &
               ': &domain lower = '//val('domain', 'lower')//' and upper = '// &
               val('domain', 'upper')//': a periodic channel needs both ends periodic; '// &
               'set lower and upper both to ''periodic'', or neither'
@@ -693,7 +695,8 @@ contains
       end if
       if (c%initial%flow == 'taylor_green' .and. &
           any([d%sides, d%lower, d%upper] /= 'periodic')) then
-        err = src('flow', 'initial')//': &initial flow = ''taylor_green'' needs a periodic '// &
+        err = from('initial.flow domain.sides domain.lower domain.upper')// &
+              ': &initial flow = ''taylor_green'' needs a periodic '// &
               'domain, but &domain sides = '//val('domain', 'sides')//', lower = '// &
               val('domain', 'lower')//', upper = '//val('domain', 'upper')// &
               '; set all three to ''periodic'''
@@ -701,7 +704,7 @@ contains
       end if
       ! a particle would leave through a periodic side or end: not supported yet
       if (c%particles%count > 0 .and. any([d%sides, d%lower] == 'periodic')) then
-        err = src('count', 'particles')//': &particles count = '// &
+        err = from('particles.count domain.sides domain.lower')//': &particles count = '// &
               val('particles', 'count')//' with &domain sides = '//val('domain', 'sides')// &
               ', lower = '//val('domain', 'lower')//': particles need walls or open ends; '// &
               'periodic sides or ends are for particle-free scenes'
@@ -752,7 +755,7 @@ contains
       character(len=:), allocatable :: head
       nu_log = log10(c%fluid%viscosity) - log10(c%fluid%density)
       dt_log = log10(cs2*(c%lbm%tau - 0.5_wp)) + 2.0_wp*log10(c%lbm%dx) - nu_log
-      head = origin_of(reg, 'fluid', 'viscosity', src('density', 'fluid'))// &
+      head = from('fluid.viscosity fluid.density lbm.tau lbm.dx lbm.cells_per_diameter')// &
              ': &fluid viscosity = '//val('fluid', 'viscosity')//' g/(cm s) and density = '// &
              val('fluid', 'density')//' g/cm^3 give '
       if (nu_log < log10(tiny(1.0_wp)) .or. nu_log > log10(huge(1.0_wp))) then
@@ -777,17 +780,19 @@ contains
     !> t_end/dt rounds to 1..MAX_STEPS time steps (run.steps > 0 is range-checked as a key).
     !! dt is within DT_MIN..DT_MAX here; t_end/dt is compared in logarithms as well.
     subroutine check_steps()
+      character(len=*), parameter :: STEP_KEYS = 'run.t_end lbm.tau lbm.dx '// &
+                                     'lbm.cells_per_diameter fluid.viscosity fluid.density'
       real(wp) :: dt, n_log
       if (c%run%steps > 0) return
       dt = cs2*(c%lbm%tau - 0.5_wp)*c%lbm%dx**2/(c%fluid%viscosity/c%fluid%density)
       n_log = log10(c%run%t_end) - log10(dt)
       if (n_log < log10(0.5_wp)) then
-        err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives 0 time '// &
+        err = from(STEP_KEYS)//': &run t_end = '//val('run', 't_end')//' s gives 0 time '// &
               'steps: dt = '//fmt_real(dt)//' s (from '//dx_text()//', &lbm tau = '// &
               val('lbm', 'tau')//' and &fluid viscosity/density); allowed: t_end >= dt/2 = '// &
               fmt_real(0.5_wp*dt)//' s, or &run steps >= 1'
       else if (n_log > log10(MAX_STEPS)) then
-        err = src('t_end', 'run')//': &run t_end = '//val('run', 't_end')//' s gives '// &
+        err = from(STEP_KEYS)//': &run t_end = '//val('run', 't_end')//' s gives '// &
               power(n_log)//' time steps of dt = '//fmt_real(dt)//' s (from '// &
               dx_text()//', &lbm tau = '//val('lbm', 'tau')//' and &fluid viscosity/'// &
               'density); allowed: at most '//itoa(nint(MAX_STEPS))//' steps, i.e. t_end <= '// &
@@ -827,7 +832,7 @@ contains
           if (p%motion(k) /= 'prescribed') cycle
           speed = hypot(p%u(k), p%v(k))
           if (speed <= u_max) cycle
-          err = origin_of(reg, 'particles', 'v', src('u', 'particles'))//': '// &
+          err = from('particles.v particles.u run.mach_limit lbm.dx lbm.tau')//': '// &
                 item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
                 ' with motion('//itoa(k)//') = ''prescribed'': particle '//itoa(k)// &
                 ' moves at '//fmt_real(speed)//' cm/s, Mach '// &
@@ -855,7 +860,7 @@ contains
       associate (p => c%particles, d => c%domain)
         do k = 1, p%count
           if (p%motion(k) /= 'prescribed') cycle
-          head = origin_of(reg, 'particles', 'v', src('u', 'particles'))// &
+          head = from('particles.v particles.u particles.x particles.y run.t_end run.steps')// &
                  ': &particles motion('//itoa(k)//') = ''prescribed'' with u('//itoa(k)// &
                  ') = '//fmt_real(p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
                  ' cm/s from (x, y) = ('//fmt_real(p%x(k))//', '//fmt_real(p%y(k))//') cm: '
@@ -971,6 +976,13 @@ contains
       s = origin_of(reg, g, k, c%file)
     end function src
 
+    !> The origin of a message on the keys 'group.key ...' (blame)
+    function from(keys) result(s)
+      character(len=*), intent(in) :: keys
+      character(len=:), allocatable :: s
+      s = blame(reg, keys, c%file)
+    end function from
+
     !> length/dx must be a whole number (within WHOLE_TOL) of at least 3 cells: the lattice
     !! would otherwise silently change the channel's size, and a channel needs interior cells.
     subroutine check_cells(key, axis, length)
@@ -979,7 +991,7 @@ contains
       real(wp) :: r
       character(len=:), allocatable :: both
       r = length/c%lbm%dx
-      both = origin_of(reg, 'lbm', 'dx', src(key, 'domain'))//': &domain '//key//' = '// &
+      both = from('lbm.dx domain.'//key//' lbm.cells_per_diameter')//': &domain '//key//' = '// &
              val('domain', key)//' and &lbm dx = '//val('lbm', 'dx')//' give '
       if (r >= MAX_CELLS) then
         err = both//axis//' = '//key//'/dx = '//fmt_real(r)//' cells; allowed: fewer than '// &
@@ -1037,7 +1049,7 @@ contains
         end if
 
         cells = p%diameter(k)/c%lbm%dx
-        both = origin_of(reg, 'lbm', 'dx', src('diameter', 'particles'))//': '// &
+        both = from('lbm.dx particles.diameter lbm.cells_per_diameter')//': '// &
                item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
                ' give '//fmt_real(cells)//' cells per diameter'
         if (cells < MIN_CELLS_PER_D - WHOLE_TOL) then
@@ -1071,7 +1083,8 @@ contains
       hi = merge(length - r, length, hi_wall)
       if ((pos > lo .or. (.not. lo_wall .and. pos >= lo)) .and. &
           (pos < hi .or. (.not. hi_wall .and. pos <= hi))) return
-      head = src(key, 'particles')//': '//item(key, k, pos)//' with '// &
+      head = from('particles.'//key//' particles.diameter domain.'//dim//' domain.sides '// &
+                  'domain.lower domain.upper')//': '//item(key, k, pos)//' with '// &
              item('diameter', k, c%particles%diameter(k))//', &domain '//dim//' = '// &
              val('domain', dim)//' and '//ends//': '
       allowed = fmt_real(lo)//trim(merge(' < ', ' <=', lo_wall))//' '//key//'('//itoa(k)// &
@@ -1109,7 +1122,7 @@ contains
             dist = hypot(gx, gy)
             contact = 0.5_wp*(p%diameter(k) + p%diameter(m))
             if (dist < contact*(1.0_wp - CONTACT_TOL)) then
-              err = origin_of(reg, 'particles', 'y', src('x', 'particles'))// &
+              err = from('particles.y particles.x particles.diameter')// &
                     ': &particles: particles '//itoa(k)//' and '//itoa(m)//' overlap at t = 0: '// &
                     pair('x', k, m)//', '//pair('y', k, m)//', '// &
                     pair('diameter', k, m)//': the distance of the centres '//fmt_real(dist)// &
@@ -1131,7 +1144,9 @@ contains
         contact = 0.5_wp*q%d1*(1.0_wp + 1.0_wp/q%gamma) + c%collision%range*c%lbm%dx
         dh_min = contact/q%d1
         if (q%dh*q%d1 <= contact*(1.0_wp + CONTACT_TOL)) &
-          err = src('dh', 'pair')//': &pair dh = '//val('pair', 'dh')//' gives D_h = '// &
+          err = from('pair.dh pair.d1 pair.gamma collision.range lbm.dx '// &
+                     'lbm.cells_per_diameter')//': &pair dh = '//val('pair', 'dh')// &
+                ' gives D_h = '// &
                 fmt_real(q%dh*q%d1)//' cm with d1 = '//val('pair', 'd1')//', gamma = '// &
                 val('pair', 'gamma')//': the pair starts within the contact distance '// &
                 '(D_1 + D_2)/2 + collision.range dx = '//fmt_real(contact)//' cm; allowed: '// &
@@ -1151,7 +1166,9 @@ contains
           top = p%y(k) + 0.5_wp*p%diameter(k) + win%margin*d1
           if (top > y_hi .or. p%y(k) - 0.5_wp*p%diameter(k) < y_lo) then
             need = (top - minval(p%y(1:p%count), mask=p%motion(1:p%count) == 'free'))/d1
-            err = src('above', 'window')//': &window above = '//val('window', 'above')// &
+            err = from('window.above window.margin particles.y particles.diameter pair.dh '// &
+                       'pair.y_upper pair.d1 pair.gamma')//': &window above = '// &
+                  val('window', 'above')// &
                   ' D_1 (D_1 = '//fmt_real(d1)//' cm) cannot hold the particles: the window '// &
                   'spans y = '//fmt_real(y_lo)//' .. '//fmt_real(y_hi)//' cm, but particle '// &
                   itoa(k)//' (y = '//fmt_real(p%y(k))//', diameter '// &
@@ -1171,12 +1188,17 @@ contains
       call kiss_thresholds(c, enter, release)
       associate (g => c%diagnostics)
         if (release <= enter) &
-          err = src('release_cells', 'diagnostics')//': &diagnostics release_cells = '// &
+          err = from('diagnostics.release_cells diagnostics.release_d1 '// &
+                     'diagnostics.enter_cells diagnostics.enter_d1 collision.range lbm.dx '// &
+                     'lbm.cells_per_diameter')//': &diagnostics release_cells = '// &
                 val('diagnostics', 'release_cells')//' and release_d1 = '// &
                 val('diagnostics', 'release_d1')//' give a release gap of '// &
                 fmt_real(release)//' spacings, not above the entry gap of '// &
-                fmt_real(enter)//' spacings (D_1 = '//fmt_real(d1)//' spacings); allowed: '// &
-                'release_cells > '//fmt_real(enter)//' or release_d1 > '//fmt_real(enter/d1)
+                fmt_real(enter)//' spacings from enter_cells = '// &
+                val('diagnostics', 'enter_cells')//' and enter_d1 = '// &
+                val('diagnostics', 'enter_d1')//' (D_1 = '//fmt_real(d1)// &
+                ' spacings); allowed: release_cells > '//fmt_real(enter)//' or release_d1 > '// &
+                fmt_real(enter/d1)//', or a smaller entry gap (enter_cells, enter_d1)'
       end associate
     end subroutine check_thresholds
 

@@ -5,6 +5,7 @@ module dkt_errors
   use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Abort, MPI_Finalize, MPI_Initialized, &
                      MPI_Finalized
   use dkt_log, only: log_record, log_close
+  use dkt_registry, only: printable
   implicit none
   private
   public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME
@@ -17,11 +18,14 @@ contains
 
   !> Stop every rank for an error that all ranks detected together (input validation is
   !! deterministic on every rank): rank 0 prints, all ranks finalise MPI and exit non-zero.
-  subroutine fatal_all(msg, code)
-    character(len=*), intent(in) :: msg  !! what is wrong and what to change
+  !! Input quoted in `text` is shown with its non-printing bytes escaped (printable).
+  subroutine fatal_all(text, code)
+    character(len=*), intent(in) :: text  !! what is wrong and what to change
     integer, intent(in), optional :: code !! exit status (default EXIT_INPUT)
     integer :: status
     logical :: running
+    character(len=:), allocatable :: msg
+    msg = printable(text)
     status = EXIT_INPUT
     if (present(code)) status = code
     if (this_rank(running) == 0) then
@@ -38,11 +42,13 @@ contains
   !> Stop every rank for an error that one rank saw alone (a failed HDF5 call or write on it):
   !! that rank prints with its number and aborts the whole job, so no rank waits forever. The
   !! output is not closed then; errors all ranks see stop through fatal_all after closing it.
-  subroutine fatal_local(msg, code)
-    character(len=*), intent(in) :: msg
+  subroutine fatal_local(text, code)
+    character(len=*), intent(in) :: text
     integer, intent(in), optional :: code
     integer :: status
     logical :: running
+    character(len=:), allocatable :: msg
+    msg = printable(text)
     status = EXIT_RUNTIME
     if (present(code)) status = code
     flush (output_unit)

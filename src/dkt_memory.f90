@@ -52,7 +52,7 @@ contains
     type(MPI_Comm) :: node
     real(wp) :: bytes(3), need, avail, limit
     integer :: node_ranks
-    character(len=:), allocatable :: source
+    character(len=:), allocatable :: source, limit_text
     character(len=160) :: msg
     bytes = rank_memory(cfg, lp, dom%nxp, dom%nyl)
     call MPI_Allreduce(MPI_IN_PLACE, bytes, 3, mpi_wp, MPI_MAX, dom%comm)
@@ -66,24 +66,51 @@ contains
     if (cfg%run%memory_limit > 0.0_wp) then
       limit = cfg%run%memory_limit*GIB
       source = 'run.memory_limit'
+      limit_text = fmt_real(cfg%run%memory_limit) ! as the user gave it
     else
       limit = avail
       source = 'MemAvailable in /proc/meminfo'
+      limit_text = gib_text(limit/GIB)
     end if
     need = real(node_ranks, wp)*sum(bytes)
     if (limit < 0.0_wp .or. need <= limit) return
     write (msg, '(a,i0,a,i0,a,i0,a)') ' for ', lp%nx, ' x ', lp%ny, &
       ' cells, times ', node_ranks, ' ranks on a node = '
-    call fatal_all(trim(cfg%file)//': the run needs '//fixed2(sum(bytes)/GIB)// &
-                   ' GiB per rank (lattices '//fixed2(bytes(1)/GIB)//' GiB, particle arrays '// &
-                   fixed2(bytes(2)/GIB)//' GiB, output buffers '//fixed2(bytes(3)/GIB)// &
-                   ' GiB)'//trim(msg)//' '//fixed2(need/GIB)//' GiB, more than the '// &
-                   fixed2(limit/GIB)//' GiB allowed ('//source//'); use fewer '// &
+    call fatal_all(trim(cfg%file)//': the run needs '//gib_text(sum(bytes)/GIB, up=.true.)// &
+                   ' GiB per rank (lattices '//gib_text(bytes(1)/GIB)//' GiB, particle '// &
+                   'arrays '//gib_text(bytes(2)/GIB)//' GiB, output buffers '// &
+                   gib_text(bytes(3)/GIB)//' GiB)'//trim(msg)//' '// &
+                   gib_text(need/GIB, up=.true.)//' GiB, more than the '//limit_text// &
+                   ' GiB allowed ('//source//'); use fewer '// &
                    'cells: a larger lbm.dx, a smaller lbm.cells_per_diameter (it sets dx '// &
                    'from the smallest particle; with &pair a smaller gamma) or a smaller '// &
                    '&domain; or spread the ranks over more nodes; or set run.memory_limit '// &
                    '(GiB) to what the run may really use')
   end subroutine check_memory
+
+  !> A size in GiB as text with three significant digits ('0.0512', '335.0', '1.2e-6'), at
+  !! least to two decimals: a small need or limit (run.memory_limit = 1e-6) would otherwise
+  !! print as 0.0 and the message 'needs 0.0 GiB, more than the 0.0 GiB allowed'. With `up`
+  !! rounded up, so that a need printed is never below the need.
+  function gib_text(x, up) result(s)
+    real(wp), intent(in) :: x
+    logical, intent(in), optional :: up
+    character(len=:), allocatable :: s
+    character(len=16) :: buf
+    real(wp) :: scale, y
+    scale = 100.0_wp
+    if (abs(x) > 0.0_wp .and. abs(x) < 100.0_wp) scale = 10.0_wp**(2 - floor(log10(abs(x))))
+    y = anint(x*scale)
+    if (present(up)) then
+      if (up) y = ceiling(x*scale)
+    end if
+    y = y/scale
+    if (scale > 100.0_wp) then ! three digits: read back, to drop the noise of the division
+      write (buf, '(es16.2e3)') y
+      read (buf, *) y
+    end if
+    s = fmt_real(y)
+  end function gib_text
 
   !> x rounded to two decimals, as text ('0.05', '335.32')
   function fixed2(x) result(s)

@@ -21,6 +21,8 @@
 !> and stored here; ranges and choices are checked later (check_key), after every override.
 module dkt_namelist
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
+  use, intrinsic :: ieee_exceptions, only: ieee_set_halting_mode, ieee_usual
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
@@ -31,13 +33,19 @@ module dkt_namelist
   public :: parse_namelist, apply_override
 
   integer, parameter :: TOK_WORD = 1, TOK_STRING = 2, TOK_EQ = 3, TOK_COMMA = 4, TOK_END = 5, &
-                        TOK_GROUP = 6, TOK_NULL = 7, TOK_SUB = 8
+                        TOK_GROUP = 6, TOK_NULL = 7, TOK_SUB = 8, TOK_BAD = 9
+  !> What a TOK_BAD is: an index '(' without ')', a string without its closing quote, a '&'
+  !! without a group name. The tokenizer stops there and the parser, which knows the group and
+  !! the key around it, says what is wrong.
+  integer, parameter :: BAD_PAREN = 1, BAD_STRING = 2, BAD_AMPERSAND = 3
   type :: token_t
     integer :: kind = 0
     integer :: line = 0
     character(len=:), allocatable :: text !! a word as written, a string without its quotes,
                                           !! a subscript '(a:b)' without blanks
     character(len=:), allocatable :: rep  !! the 'r' of r*'text' (strings only); unallocated if none
+    integer :: bad = 0                    !! TOK_BAD: BAD_PAREN, BAD_STRING or BAD_AMPERSAND
+    character(len=:), allocatable :: why  !! TOK_BAD: what else the message says
   end type token_t
 
   !> One value of an item after its repeat count is split off: `rep` copies of `tok`, or `rep`
@@ -63,13 +71,16 @@ contains
     integer :: nt, it, nv, gline
     logical :: after_value
 
-    call tokenize(text, file, toks, nt, err)
-    if (len(err) > 0) return
+    err = ''
+    call tokenize(text, toks, nt)
     allocate (vals(16))
     it = 1
     do while (it <= nt)
       loc = at(file, toks(it)%line)
-      if (toks(it)%kind /= TOK_GROUP) then
+      if (toks(it)%kind == TOK_BAD) then
+        err = loc//': '//bad_text(toks(it), '')
+        return
+      else if (toks(it)%kind /= TOK_GROUP) then
         err = loc//': '''//display(toks(it))//''' is outside a group; a group starts with '// &
               '&name and ends with /'
         return
@@ -117,6 +128,9 @@ contains
           if (it > nt) then
             err = loc//': &'//g//' '//name//' has no ''='' and no value'
             return
+          else if (toks(it)%kind == TOK_BAD) then ! key(1 = 1.0: the index is not closed
+            err = loc//': &'//g//' '//name//': '//bad_text(toks(it), name)
+            return
           else if (toks(it)%kind /= TOK_EQ) then
             err = loc//': &'//g//' expected ''='' after '''//name//''', found '''// &
                   display(toks(it))//''''
@@ -141,8 +155,21 @@ contains
             end if
             it = it + 1
           end do
+          if (it <= nt) then ! key = 'text: the string is not closed
+            if (toks(it)%kind == TOK_BAD) then ! at the line of the quote or '(' not closed
+              err = at(file, toks(it)%line)//': &'//g//' '//name//' = '//join_values(vals(1:nv))
+              if (nv > 0) err = err//', '
+              err = err//toks(it)%text//': '//bad_text(toks(it), '')
+              ! unless the tokenizer already named a string that ran over lines
+              if (index(toks(it)%why, 'several lines') == 0) err = err//quote_hint(vals(1:nv))
+              return
+            end if
+          end if
           call assign(reg, g, name, vals(1:nv), loc, err)
           if (len(err) > 0) return
+        case (TOK_BAD)
+          err = loc//': &'//g//': '//bad_text(toks(it), '')
+          return
         case default
           err = loc//': &'//g//' expected key = value, found '''//display(toks(it))//''''
           return
@@ -179,6 +206,8 @@ contains
     if (toks(it)%kind /= TOK_WORD .or. it + 1 > nt) return
     if (toks(it + 1)%kind == TOK_EQ) then
       starts_item = .true.
+    else if (toks(it + 1)%kind == TOK_BAD) then ! key(1 = ..: an index not closed
+      starts_item = toks(it + 1)%bad == BAD_PAREN
     else if (it + 2 <= nt) then
       starts_item = toks(it + 1)%kind == TOK_SUB .and. toks(it + 2)%kind == TOK_EQ
     end if
@@ -452,7 +481,8 @@ contains
     integer, intent(in) :: n
     integer, intent(out) :: first, step, count
     character(len=:), allocatable, intent(out) :: why
-    character(len=:), allocatable :: des, range_text, part(:)
+    character(len=:), allocatable :: des, range_text
+    character(len=len(sub)) :: part(3) !! lower bound, upper bound, stride as written
     character(len=11), parameter :: WHAT(3) = ['lower bound', 'upper bound', 'stride     ']
     integer :: c1, c2, v(3), j, last
     des = base//'('//sub//')'
@@ -467,7 +497,9 @@ contains
     end if
     c1 = index(sub, ':')
     if (c1 == 0) then
-      if (.not. whole_number(sub, first)) then
+      if (too_large(sub)) then
+        why = 'index '//sub//' is out of range; '//range_text
+      else if (.not. whole_number(sub, first)) then
         why = 'the index of '''//des//''' is not a whole number'
       else if (first < 1 .or. first > n) then
         why = 'index '//itoa(first)//' is out of range; '//range_text
@@ -491,7 +523,11 @@ contains
     v = [1, n, 1] ! the defaults of an omitted bound or stride
     do j = 1, 3
       if (len_trim(part(j)) == 0) cycle
-      if (.not. whole_number(trim(part(j)), v(j))) then
+      if (too_large(trim(part(j)))) then
+        why = 'the '//trim(WHAT(j))//' '//trim(part(j))//' of '''//des// &
+              ''' is out of range; '//range_text
+        return
+      else if (.not. whole_number(trim(part(j)), v(j))) then
         why = 'the '//trim(WHAT(j))//' '''//trim(part(j))//''' of '''//des// &
               ''' is not a whole number'
         return
@@ -540,7 +576,7 @@ contains
     case (KEY_REAL)
       select case (real_form(t))
       case (1)
-        read (t%text, *, iostat=ios) x
+        call read_real(t%text, x, ios)
         if (ios /= 0) then
           why = item//' is not a real number'
         else if (.not. ieee_is_finite(x)) then
@@ -592,6 +628,21 @@ contains
       end if
     end select
   end subroutine store
+
+  !> Read real `text` (of real_form 1) into `x`, with no floating-point trap: a literal beyond
+  !! the double range (1e999) gives Infinity and store() says it is too large, where a build
+  !! that traps overflow (-ffpe-trap=overflow) would otherwise die inside the read. The
+  !! exception flags and halting modes are restored afterwards.
+  subroutine read_real(text, x, ios)
+    character(len=*), intent(in) :: text
+    real(wp), intent(out) :: x
+    integer, intent(out) :: ios
+    type(ieee_status_type) :: status
+    call ieee_get_status(status)
+    call ieee_set_halting_mode(ieee_usual, .false.)
+    read (text, *, iostat=ios) x
+    call ieee_set_status(status)
+  end subroutine read_real
 
   !> 1 if `t` is a real number as list-directed input writes it ([sign] digits with an optional
   !! point, then an optional exponent E/D[sign]digits or sign digits), 2 for Inf or NaN, 0
@@ -649,43 +700,62 @@ contains
     end subroutine digits_at
   end function real_form
 
-  !> Is `text` a whole number ([sign]digits) that fits an integer? Then `i` is its value.
-  logical function whole_number(text, i)
+  !> Is `text` written as a whole number, [sign]digits (of any size)?
+  pure logical function digits_form(text)
     character(len=*), intent(in) :: text
-    integer, intent(out) :: i
-    integer :: p, ios
-    i = 0
-    whole_number = .false.
+    integer :: p
+    digits_form = .false.
     p = 1
     if (len(text) == 0) return
     if (text(1:1) == '+' .or. text(1:1) == '-') p = 2
     if (p > len(text)) return
-    if (verify(text(p:), '0123456789') /= 0) return
+    digits_form = verify(text(p:), '0123456789') == 0
+  end function digits_form
+
+  !> Is `text` a whole number too large for an integer? An index so written is out of range
+  !! rather than 'not a whole number'.
+  logical function too_large(text)
+    character(len=*), intent(in) :: text
+    integer :: i
+    too_large = digits_form(text) .and. .not. whole_number(text, i)
+  end function too_large
+
+  !> Is `text` a whole number ([sign]digits) that fits an integer? Then `i` is its value.
+  logical function whole_number(text, i)
+    character(len=*), intent(in) :: text
+    integer, intent(out) :: i
+    integer :: ios
+    i = 0
+    whole_number = .false.
+    if (.not. digits_form(text)) return
     read (text, *, iostat=ios) i
     whole_number = ios == 0
   end function whole_number
 
-  !> Split `text` into tokens. Lexical errors: an unclosed string, an index '(' without ')',
-  !! and a bare '&'.
-  subroutine tokenize(text, file, toks, nt, err)
-    character(len=*), intent(in) :: text, file
+  !> Split `text` into tokens. Lexical errors (an unclosed string, an index '(' without ')',
+  !! a bare '&') end the list with a TOK_BAD token, for the parser to report in its context.
+  !! A leading UTF-8 byte-order mark is skipped.
+  subroutine tokenize(text, toks, nt)
+    character(len=*), intent(in) :: text
     type(token_t), allocatable, intent(out) :: toks(:)
     integer, intent(out) :: nt
-    character(len=:), allocatable, intent(out) :: err
-    character(len=:), allocatable :: s, rep
+    character(len=:), allocatable :: s, rep, why
     character :: c, quote
     integer :: p, q, line, n, first_line, last_end, nl, start
     integer :: spanned !! first line of the last string that ran over lines; 0 if none
     logical :: has_rep
     allocate (toks(64))
     nt = 0
-    err = ''
     s = ''
     line = 1
     p = 1
     n = len(text)
     last_end = -1 ! where the last token ends, to see whether a string follows r* directly
     spanned = 0
+    ! A UTF-8 byte-order mark, as some editors save a file, is not part of the namelist.
+    if (n >= 3) then
+      if (text(1:3) == char(239)//char(187)//char(191)) p = 4
+    end if
     do while (p <= n)
       c = text(p:p)
       if (c == achar(10)) then
@@ -707,8 +777,7 @@ contains
         q = index(text(p:), ')')
         nl = index(text(p:), achar(10))
         if (q == 0 .or. (nl > 0 .and. nl < q)) then
-          err = at(file, line)//': '''//trim(text(p:p - 1 + merge(nl - 1, n - p + 1, nl > 0)))// &
-                ''' has no closing '')''; an index is written key(i), key(a:b) or key(a:b:s)'
+          call push_bad(BAD_PAREN, trim(text(p:p - 1 + merge(nl - 1, n - p + 1, nl > 0))), '')
           return
         end if
         start = p
@@ -735,12 +804,13 @@ contains
           p = p + 1
           if (p > n) then
             q = index(s//achar(10), achar(10))
-            err = at(file, first_line)//': string '//quote//s(:q - 1)//' is not closed; '// &
-                  'it ends at the next '//quote//' (a doubled '//quote//quote// &
+            why = 'it ends at the next '//quote//' (a doubled '//quote//quote// &
                   ' stands for one), maybe on a later line'
             ! A quote left out earlier makes the next string run on and pair the wrong quotes.
-            if (spanned > 0) err = err//'; the string that starts on line '//itoa(spanned)// &
+            if (spanned > 0) why = why//'; the string that starts on line '//itoa(spanned)// &
                                    ' runs over several lines: is its closing quote missing?'
+            line = first_line
+            call push_bad(BAD_STRING, quote//s(:q - 1), why)
             return
           end if
           if (text(p:p) == achar(10)) then
@@ -785,7 +855,7 @@ contains
         p = q
         if (c == '&' .or. c == '$') then
           if (q == start) then
-            err = at(file, line)//': '''//c//''' without a group name; a group starts with &name'
+            call push_bad(BAD_AMPERSAND, c, '')
             return
           end if
           if (lower_case(text(start + 1:q)) == 'end') then
@@ -808,7 +878,53 @@ contains
       if (present(at_line)) toks(nt)%line = at_line
       last_end = p ! p is at the last character of the token
     end subroutine push
+
+    !> The token where the text cannot go on (see BAD_PAREN ..); the tokenizer stops after it.
+    subroutine push_bad(bad, word, why)
+      integer, intent(in) :: bad
+      character(len=*), intent(in) :: word, why
+      call push(TOK_BAD, word)
+      toks(nt)%bad = bad
+      toks(nt)%why = why
+    end subroutine push_bad
   end subroutine tokenize
+
+  !> For a string not closed after values `vals` of its item: a string among them that holds
+  !! an '=' most likely swallowed the next items (sides = 'wall, lower = 'periodic'), so its
+  !! own closing quote is the one missing. '' if there is none.
+  function quote_hint(vals) result(s)
+    type(token_t), intent(in) :: vals(:)
+    character(len=:), allocatable :: s
+    integer :: j, q
+    s = ''
+    do j = 1, size(vals)
+      if (vals(j)%kind /= TOK_STRING) cycle
+      if (index(vals(j)%text, '=') == 0) cycle
+      q = scan(vals(j)%text//',', ', ')
+      s = '; the string '//display(vals(j))//' holds an ''='': is the closing quote after '// &
+          quoted(vals(j)%text(:q - 1))//' missing?'
+      return
+    end do
+  end function quote_hint
+
+  !> What is wrong at a TOK_BAD token `t`; `key` is the key name written right before an
+  !! unclosed index ('' elsewhere).
+  function bad_text(t, key) result(s)
+    type(token_t), intent(in) :: t
+    character(len=*), intent(in) :: key
+    character(len=:), allocatable :: s, k
+    select case (t%bad)
+    case (BAD_PAREN)
+      k = key
+      if (len(k) == 0) k = 'key'
+      s = ''''//key//t%text//''' has no closing '')''; an index is written '//k//'(i), '// &
+          k//'(a:b) or '//k//'(a:b:s)'
+    case (BAD_STRING)
+      s = 'the string '//t%text//' is not closed; '//t%why
+    case default
+      s = ''''//t%text//''' without a group name; a group starts with &name'
+    end select
+  end function bad_text
 
   ! ---------------------------------------------------------------- small helpers
 

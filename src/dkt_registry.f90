@@ -14,9 +14,10 @@ module dkt_registry
   public :: key_t, registry_t
   public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
   public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice, add_choices
-  public :: find_key, has_group, origin_of, unknown_group_hint, unknown_key_hint, check_key
+  public :: find_key, has_group, origin_of, blame, unknown_group_hint, unknown_key_hint, check_key
   public :: value_text, allowed_text, type_name, text_length, fmt_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
+  public :: printable
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
                         KEY_CHOICE = 5
@@ -209,6 +210,42 @@ contains
       if (len(reg%keys(idx)%origin) > 0) src = reg%keys(idx)%origin
     end if
   end function origin_of
+
+  !> Where the values that a rule joins came from, for its message; `keys` lists them as
+  !! 'group.key', blank-separated, the key the message names first first. The --set options
+  !! among them come first: a value given on the command line is what the user just changed,
+  !! and the file line of another key would show a value the rule did not see. Without one,
+  !! the origin of the first key that was set, else `fallback`. Several options are joined as
+  !! 'file: --set a=1, --set b=2'.
+  function blame(reg, keys, fallback) result(src)
+    type(registry_t), intent(in) :: reg
+    character(len=*), intent(in) :: keys, fallback
+    character(len=:), allocatable :: src, w, o, first
+    integer :: j, idx, dot, p
+    src = ''
+    first = ''
+    j = 1
+    do
+      w = word(keys, j)
+      if (len(w) == 0) exit
+      j = j + 1
+      dot = index(w, '.')
+      idx = find_key(reg, w(:dot - 1), w(dot + 1:))
+      if (idx == 0) cycle
+      o = reg%keys(idx)%origin
+      if (len(o) == 0) cycle
+      if (len(first) == 0) first = o
+      p = index(o, '--set ')
+      if (p == 0) cycle
+      if (len(src) == 0) then
+        src = o
+      else if (index(src//',', o(p:)//',') == 0) then
+        src = src//', '//o(p:)
+      end if
+    end do
+    if (len(src) == 0) src = first
+    if (len(src) == 0) src = fallback
+  end function blame
 
   !> '; known groups: &a, &b, ...; did you mean &x?' for a group that is not in the registry.
   function unknown_group_hint(reg, group) result(s)
@@ -458,6 +495,43 @@ contains
     end do
     q = q//''''
   end function quoted
+
+  !> `text` with every byte a terminal would not show as written replaced by its hex code in
+  !! angle brackets: control bytes (ESC is <1b>, NUL <00>, DEL <7f>, also tab and line ends)
+  !! and bytes that are not part of a valid UTF-8 character (a stray Latin-1 byte). Messages
+  !! quote the user's input through it, so that an invisible byte can neither hide in the
+  !! message ('tau = 1.0<1b> is not a real number') nor act on the terminal.
+  function printable(text) result(s)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: s
+    integer :: j, b, n, m
+    character(len=*), parameter :: HEX = '0123456789abcdef'
+    s = ''
+    j = 1
+    do while (j <= len(text))
+      b = ichar(text(j:j))
+      n = 0 ! the continuation bytes of a UTF-8 character that starts with byte b
+      if (b >= 194 .and. b <= 223) n = 1
+      if (b >= 224 .and. b <= 239) n = 2
+      if (b >= 240 .and. b <= 244) n = 3
+      if (n > 0 .and. j + n <= len(text)) then
+        do m = 1, n
+          if (ichar(text(j + m:j + m)) < 128 .or. ichar(text(j + m:j + m)) > 191) n = 0
+        end do
+        if (n > 0) then
+          s = s//text(j:j + n)
+          j = j + n + 1
+          cycle
+        end if
+      end if
+      if (b < 32 .or. b >= 127) then
+        s = s//'<'//HEX(b/16 + 1:b/16 + 1)//HEX(mod(b, 16) + 1:mod(b, 16) + 1)//'>'
+      else
+        s = s//text(j:j)
+      end if
+      j = j + 1
+    end do
+  end function printable
 
   function itoa(i) result(s)
     integer, intent(in) :: i

@@ -10,9 +10,8 @@ dkt_add_pytest(NAME cli_bad_input FILE tests/test_bad_input.py LABELS mpi PROCES
 # test_input_fuzz.py: about 90 classes of bad input and seeded mutations of every scene of
 # input/, each refused cleanly (exit 2, one message, no output) or accepted by --check; some 140
 # short jobs on 2 ranks, about 60 s on 2 busy cores.
-# The compiler flags tell it whether floating-point overflow traps (debug build).
 dkt_add_pytest(NAME cli_input_fuzz FILE tests/test_input_fuzz.py LABELS mpi PROCESSORS 2
-  TIMEOUT 300 ENV "DKTLBM_FORTRAN_FLAGS=${DKT_FORTRAN_FLAGS}")
+  TIMEOUT 300)
 dkt_add_pytest(NAME cli_guards FILE tests/test_guards.py LABELS mpi PROCESSORS 2 TIMEOUT 120)
 dkt_add_pytest(NAME cli_output_contract FILE tests/test_output_contract.py LABELS regression
   PROCESSORS 2 TIMEOUT 120)

@@ -10,6 +10,7 @@ program test_config
                         config_check_text, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
                         config_output_dir, MAX_PARTICLES
+  use dkt_registry, only: printable
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
@@ -41,6 +42,7 @@ program test_config
   call test_nml_overrides()
   call test_nml_errors()
   call test_derived_and_text_errors()
+  call test_input_defects()
 
   write (*, '(i0,a,i0,a)') n_pass, ' passed, ', n_fail, ' failed'
   if (n_fail > 0) error stop 1
@@ -1076,5 +1078,59 @@ contains
     call expect_error('error: $ without a group name', '$ tau = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '''$'' without a group name'])
   end subroutine test_nml_errors
+
+  !> Input the reader once got wrong: each message must name group, key and value (and the
+  !! --set option a value came from), a byte-order mark is no key, an overflowing literal is
+  !! refused (the debug build traps overflow: there a trapped read kills this test).
+  subroutine test_input_defects()
+    type(config_t) :: cfg
+    character(len=:), allocatable :: err
+    character(len=*), parameter :: CHANNEL = '&domain width = 1.0, height = 0.3 /'//NL// &
+                                   '&lbm dx = 0.05 /'
+    ! an unclosed '(' once named neither &particles nor x
+    call expect_error('error: an index without its '')''', '&particles'//NL//'  x(1 = 1.0 /', &
+                      [character(len=60) :: 'input/test.nml:2:', '&particles', 'x(1 = 1.0', &
+                       'no closing '')''', 'x(i), x(a:b) or x(a:b:s)'])
+    ! an unclosed string once named neither &domain nor sides
+    call expect_error('error: a string without its closing quote', &
+                      '&domain'//NL//'  sides = ''wall'//NL//'/', &
+                      [character(len=60) :: 'input/test.nml:2:', '&domain', 'sides = ''wall', &
+                       'not closed'])
+    ! 99999999999 is a whole number: once called 'not a whole number'
+    call expect_error('error: an index beyond the integer range', &
+                      '&particles x(99999999999) = 1 /', &
+                      [character(len=60) :: 'input/test.nml:1:', '&particles', &
+                       'x(99999999999)', 'out of range', 'x(1) to x(16)'])
+    call expect_error('error: a section bound beyond the integer range', &
+                      '&particles x(1:99999999999) = 1 /', &
+                      [character(len=60) :: 'input/test.nml:1:', '&particles', &
+                       'x(1:99999999999)', 'upper bound', 'out of range', 'x(1) to x(16)'])
+    call expect_error('error: a real beyond the double range', '&domain width = 1e999 /', &
+                      [character(len=60) :: 'input/test.nml:1:', '&domain', 'width = 1e999', &
+                       'not a finite real number', 'width > 0'])
+    ! a byte-order mark was once refused as "'<3 bytes>' is outside a group"
+    call load_ok('a leading byte-order mark', char(239)//char(187)//char(191)// &
+                 '&lbm tau = 0.7 /', cfg)
+    call check('a leading byte-order mark: tau is read', same(cfg%lbm%tau, 0.7_wp))
+    ! width from --set, dx from line 2: the message once cited line 2 for width = 0.1
+    call config_load(cfg, CHANNEL, FILE, [character(len=20) :: 'domain.width=0.1'], err)
+    call expect_parts('error: a joint rule names the --set option of its value', err, &
+                      [character(len=60) :: 'input/test.nml: --set domain.width=0.1', &
+                       '&domain width = 0.1', 'dx = 0.05', 'nx >= 3'])
+    call check('error: a joint rule does not cite a file line for a --set value', &
+               index(err, 'test.nml:2') == 0)
+    call expect_error('error: a joint rule of file values names the line', &
+                      '&domain width = 0.1, height = 0.3 /'//NL//'&lbm dx = 0.05 /', &
+                      [character(len=60) :: 'input/test.nml:2:', '&domain width = 0.1', 'nx >= 3'])
+    ! non-printing bytes are shown by their codes; UTF-8 characters as they are
+    call check('printable: ESC, NUL, DEL as codes', &
+               printable('tau = 1.0'//achar(27)//achar(0)//achar(127)) == &
+               'tau = 1.0<1b><00><7f>')
+    call check('printable: a stray Latin-1 byte as its code', &
+               printable('ta'//char(233)//' = 1') == 'ta<e9> = 1')
+    call check('printable: a UTF-8 character kept', &
+               printable('mu = 1 '//char(194)//char(181)//'m') == &
+               'mu = 1 '//char(194)//char(181)//'m')
+  end subroutine test_input_defects
 
 end program test_config
