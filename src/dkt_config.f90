@@ -300,7 +300,8 @@ contains
                   'amplitude of the initial flow', ge=0.0_wp)
 
     call add_integer(reg, 'particles', 'count', c%particles%count, '-', &
-                     'number of particles; particle k uses element k of each array', &
+                     'number of particles; sets the size of each array, particle k uses '// &
+                     'element k; at most what a checkpoint holds', &
                      ge=0, le=MAX_PARTICLES)
     call add_reals(reg, 'particles', 'diameter', c%particles%diameter, 'cm', &
                    'particle diameter', gt=0.0_wp)
@@ -477,30 +478,26 @@ contains
     call particles_allocate(s%particles, 1)
     call build_registry(s, reg)
     do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) then
+      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) &
         reg%keys(j)%open_to = MAX_PARTICLES
-        reg%keys(j)%size_note = '; a scene holds at most '//itoa(MAX_PARTICLES)// &
-                                ' particles (a checkpoint holds no more)'
-      end if
     end do
+    ! An error stops this read where the second read will stop with the same message, whose
+    ! index ranges then follow the count found up to there.
     call parse_namelist(reg, text, file, err)
-    if (len(err) > 0) return
     do j = 1, size(overrides)
+      if (len(err) > 0) exit
       if (len_trim(overrides(j)) == 0) cycle
       call apply_override(reg, overrides(j), file, err)
-      if (len(err) > 0) return
     end do
+    err = ''
+    n = 0
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%group == 'particles') n = max(n, reg%keys(j)%top)
+    end do
+    ! a count out of range gets its message from the range check after the second read
     k = find_key(reg, 'particles', 'count')
-    if (len(reg%keys(k)%origin) > 0) then
-      ! a count out of range gets its message from the range check of the second read
-      if (s%particles%count >= 0 .and. s%particles%count <= MAX_PARTICLES) &
-        n = s%particles%count
-    else
-      n = 0
-      do j = 1, size(reg%keys)
-        if (reg%keys(j)%group == 'particles') n = max(n, reg%keys(j)%top)
-      end do
-    end if
+    if (len(reg%keys(k)%origin) > 0 .and. s%particles%count >= 0 .and. &
+        s%particles%count <= MAX_PARTICLES) n = s%particles%count
     if (s%pair%gamma > 0.0_wp) n = max(n, 2)
     n = max(n, 1)
   end subroutine particle_slots
