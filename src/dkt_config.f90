@@ -463,7 +463,8 @@ contains
   end subroutine config_load
 
   !> How many elements the particle arrays need (>= 1): particles.count when the input gives it
-  !! (file or --set), else the highest element any &particles array key is given; 2 at least
+  !! (file or --set) above 0, else the highest element any &particles array key is given (a
+  !! scene without particles may keep unused values); 2 at least
   !! for a pair scene (expand writes particles 1 and 2). A first read of the input that stores
   !! the scalars into a scratch configuration and only counts array elements.
   subroutine particle_slots(text, file, overrides, n, err)
@@ -496,7 +497,7 @@ contains
     end do
     ! a count out of range gets its message from the range check after the second read
     k = find_key(reg, 'particles', 'count')
-    if (len(reg%keys(k)%origin) > 0 .and. s%particles%count >= 0 .and. &
+    if (len(reg%keys(k)%origin) > 0 .and. s%particles%count > 0 .and. &
         s%particles%count <= MAX_PARTICLES) n = s%particles%count
     if (s%pair%gamma > 0.0_wp) n = max(n, 2)
     n = max(n, 1)
