@@ -333,10 +333,10 @@ contains
   !> Why the run must stop ('' if it need not): a particle left the lattice (its centre beyond
   !! a side or an end), a prescribed particle reached a wall, or a prescribed particle entered
   !! another body: a fixed or prescribed one at contact, a free one deeper than the larger
-  !! radius (a free particle normally makes way; one pinned against a wall cannot). The input check refuses
-  !! what a constant prescribed velocity makes predictable; this catches what it cannot
-  !! (a moving window, free particles). Every rank holds the same particle states, so every
-  !! rank returns the same failure at the same step and the loop stops them together.
+  !! radius (a free particle normally makes way; one pinned against a wall cannot). The input
+  !! check refuses what a constant prescribed velocity makes predictable; this catches what it
+  !! cannot (a moving window, free particles). Every rank holds the same particle states, so
+  !! every rank returns the same failure at the same step and the loop stops them together.
   subroutine check_particle_places(sim, n, failure)
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
