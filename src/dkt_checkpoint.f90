@@ -22,6 +22,8 @@ module dkt_checkpoint
   use dkt_kinds, only: wp
   use dkt_filesystem, only: rename_file
   use dkt_registry, only: itoa
+  ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
+  use dkt_config, only: MAX_PARTICLES
   use dkt_io, only: io_file_t, io_file_open, io_file_close, io_put_real, &
                     io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none
@@ -30,8 +32,6 @@ module dkt_checkpoint
 
   integer, parameter :: NSTATE = 10 !! values of one particle's state
   integer, parameter :: NINT = 9    !! entries of /state_int
-  !> more particles than any scene can hold: a count above it is a damaged file
-  integer, parameter :: MAX_PARTICLES = 1000000
 
   !> The state of a run between two steps, besides the populations.
   type :: checkpoint_t

@@ -17,7 +17,7 @@ module dkt_config
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
-  public :: dx_knob, pair_d1, largest_diameter
+  public :: dx_knob, pair_d1, largest_diameter, particles_allocate
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -59,21 +59,25 @@ module dkt_config
     real(wp) :: velocity = 0.0_wp         !! cm/s, amplitude of the initial flow
   end type initial_cfg_t
 
-  integer, parameter, public :: MAX_PARTICLES = 16 !! most particles a scene may hold
+  !> The most particles a scene may hold: a checkpoint holds at most this many (dkt_checkpoint
+  !! refuses a larger count as damaged), so a run with more could not be resumed.
+  integer, parameter, public :: MAX_PARTICLES = 1000000
 
   !> &particles: rigid circular particles (docs/model.md §3), in physical units. Element k of each
-  !! array belongs to particle k; only particles 1..count are used.
+  !! array belongs to particle k; only particles 1..count are used. config_load allocates the
+  !! arrays to the size the input asks for (particle_slots), at least 1; particles_allocate
+  !! sizes them for a configuration built in code.
   type, public :: particles_cfg_t
-    integer :: count = 0                                !! number of particles, 0..MAX_PARTICLES
-    real(wp) :: diameter(MAX_PARTICLES) = 0.2_wp        !! cm
-    real(wp) :: density(MAX_PARTICLES) = 1.01_wp        !! g/cm^3
-    real(wp) :: x(MAX_PARTICLES) = 1.0_wp               !! cm, centre across the channel
-    real(wp) :: y(MAX_PARTICLES) = 1.0_wp               !! cm, centre along the channel
-    real(wp) :: u(MAX_PARTICLES) = 0.0_wp               !! cm/s, initial (or prescribed) x-velocity
-    real(wp) :: v(MAX_PARTICLES) = 0.0_wp               !! cm/s, initial (or prescribed) y-velocity
-    real(wp) :: omega(MAX_PARTICLES) = 0.0_wp           !! 1/s, initial (or prescribed) spin
-    character(len=16) :: motion(MAX_PARTICLES) = 'free' !! 'free', 'fixed' or 'prescribed'
-    real(wp) :: gravity = 980.0_wp                      !! cm/s^2, along -y on the particles (E9)
+    integer :: count = 0                              !! number of particles, 0..MAX_PARTICLES
+    real(wp), allocatable :: diameter(:)              !! cm
+    real(wp), allocatable :: density(:)               !! g/cm^3
+    real(wp), allocatable :: x(:)                     !! cm, centre across the channel
+    real(wp), allocatable :: y(:)                     !! cm, centre along the channel
+    real(wp), allocatable :: u(:)                     !! cm/s, initial (or prescribed) x-velocity
+    real(wp), allocatable :: v(:)                     !! cm/s, initial (or prescribed) y-velocity
+    real(wp), allocatable :: omega(:)                 !! 1/s, initial (or prescribed) spin
+    character(len=16), allocatable :: motion(:)       !! 'free', 'fixed' or 'prescribed'
+    real(wp) :: gravity = 980.0_wp                    !! cm/s^2, along -y on the particles (E9)
   end type particles_cfg_t
 
   !> &pair: the two particles of a DKT scene (docs/model.md §7), set by the diameter ratio and the
@@ -244,6 +248,9 @@ contains
     type(config_t), intent(inout), target :: c
     type(registry_t), intent(out) :: reg
     character(len=*), parameter :: ENDS = 'wall periodic velocity outflow'
+    integer :: j
+    if (.not. allocated(c%particles%diameter)) &
+      call particles_allocate(c%particles, max(1, c%particles%count))
 
     call add_real(reg, 'domain', 'width', c%domain%width, 'cm', &
                   'channel width (x, across the channel)', gt=0.0_wp)
@@ -293,7 +300,8 @@ contains
                   'amplitude of the initial flow', ge=0.0_wp)
 
     call add_integer(reg, 'particles', 'count', c%particles%count, '-', &
-                     'number of particles; particle k uses element k of each array', &
+                     'number of particles; sets the size of each array, particle k uses '// &
+                     'element k; at most what a checkpoint holds', &
                      ge=0, le=MAX_PARTICLES)
     call add_reals(reg, 'particles', 'diameter', c%particles%diameter, 'cm', &
                    'particle diameter', gt=0.0_wp)
@@ -312,6 +320,11 @@ contains
     call add_choices(reg, 'particles', 'motion', c%particles%motion, 'free fixed prescribed', &
                      'free (moved by fluid and gravity, E8), fixed (at rest) or prescribed '// &
                      '(u, v, omega kept)')
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) reg%keys(j)%size_note = &
+        ' (the particle arrays have particles.count elements, at least 1; raise '// &
+        'particles.count for more particles, at most '//itoa(MAX_PARTICLES)//')'
+    end do
     call add_real(reg, 'particles', 'gravity', c%particles%gravity, 'cm/s^2', &
                   'gravity on the particles, along -y; acts as weight minus buoyancy (E9)', &
                   ge=0.0_wp)
@@ -424,6 +437,9 @@ contains
     if (present(warnings)) warnings = ''
     cfg%file = file
     cfg%name = basename(file)
+    call particle_slots(text, file, overrides, j, err)
+    if (len(err) > 0) return
+    call particles_allocate(cfg%particles, j)
     call build_registry(cfg, reg)
     call parse_namelist(reg, text, file, err)
     if (len(err) > 0) return
@@ -445,6 +461,78 @@ contains
     if (present(warnings)) warnings = found
     if (len(err) == 0 .and. present(lp)) lp = lattice_from(cfg)
   end subroutine config_load
+
+  !> How many elements the particle arrays need (>= 1): particles.count when the input gives it
+  !! (file or --set) above 0, else the highest element any &particles array key is given (a
+  !! scene without particles may keep unused values); 2 at least
+  !! for a pair scene (expand writes particles 1 and 2). A first read of the input that stores
+  !! the scalars into a scratch configuration and only counts array elements.
+  subroutine particle_slots(text, file, overrides, n, err)
+    character(len=*), intent(in) :: text, file
+    character(len=*), intent(in) :: overrides(:)
+    integer, intent(out) :: n
+    character(len=:), allocatable, intent(out) :: err
+    type(config_t), target :: s
+    type(registry_t) :: reg
+    integer :: j, k
+    n = 1
+    call particles_allocate(s%particles, 1)
+    call build_registry(s, reg)
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) &
+        reg%keys(j)%open_to = MAX_PARTICLES
+    end do
+    ! An error stops this read where the second read will stop with the same message, whose
+    ! index ranges then follow the count found up to there.
+    call parse_namelist(reg, text, file, err)
+    do j = 1, size(overrides)
+      if (len(err) > 0) exit
+      if (len_trim(overrides(j)) == 0) cycle
+      call apply_override(reg, overrides(j), file, err)
+    end do
+    err = ''
+    n = 0
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%group == 'particles') n = max(n, reg%keys(j)%top)
+    end do
+    ! a count out of range gets its message from the range check after the second read
+    k = find_key(reg, 'particles', 'count')
+    if (len(reg%keys(k)%origin) > 0 .and. s%particles%count > 0 .and. &
+        s%particles%count <= MAX_PARTICLES) n = s%particles%count
+    if (s%pair%gamma > 0.0_wp) n = max(n, 2)
+    n = max(n, 1)
+  end subroutine particle_slots
+
+  !> Size the particle arrays of `p` to `n` elements: elements 1..min(n, old size) keep their
+  !! values, the others take the defaults.
+  subroutine particles_allocate(p, n)
+    type(particles_cfg_t), intent(inout) :: p
+    integer, intent(in) :: n
+    call resize(p%diameter, 0.2_wp)
+    call resize(p%density, 1.01_wp)
+    call resize(p%x, 1.0_wp)
+    call resize(p%y, 1.0_wp)
+    call resize(p%u, 0.0_wp)
+    call resize(p%v, 0.0_wp)
+    call resize(p%omega, 0.0_wp)
+    block
+      character(len=16), allocatable :: t(:)
+      allocate (t(n))
+      t = 'free'
+      if (allocated(p%motion)) t(1:min(n, size(p%motion))) = p%motion(1:min(n, size(p%motion)))
+      call move_alloc(t, p%motion)
+    end block
+  contains
+    subroutine resize(a, default)
+      real(wp), allocatable, intent(inout) :: a(:)
+      real(wp), intent(in) :: default
+      real(wp), allocatable :: t(:)
+      allocate (t(n))
+      t = default
+      if (allocated(a)) t(1:min(n, size(a))) = a(1:min(n, size(a)))
+      call move_alloc(t, a)
+    end subroutine resize
+  end subroutine particles_allocate
 
   !> Validate a configuration built or changed in code ('' if valid); `warnings` as in
   !! config_load.
@@ -1355,9 +1443,13 @@ contains
     real(wp) :: y0, rho_f
     integer :: n
     n = c%particles%count
+    if (n == 0) then ! a configuration built in code may leave its particle arrays unallocated
+      allocate (lb%x(0), lb%y(0), lb%r(0), lb%u(0), lb%v(0), lb%omega(0), lb%density(0))
+      return
+    end if
     rho_f = c%fluid%density
     y0 = 0.0_wp
-    if (c%window%enabled .and. n > 0) y0 = window_bottom(c)
+    if (c%window%enabled) y0 = window_bottom(c)
     associate (p => c%particles, col => c%collision)
       lb%x = p%x(1:n)/dx
       lb%y = (p%y(1:n) - y0)/dx
@@ -1384,6 +1476,8 @@ contains
     integer :: j
     c = cfg
     call build_registry(c, reg)
+    ! the default column lists as many elements as the value column
+    call particles_allocate(defaults%particles, size(c%particles%diameter))
     call build_registry(defaults, dreg)
     text = '! dktlbm input: every key with its value. Units cm, g, s. Each key''s comment:'//NL// &
            '! [unit] default: ..; allowed: ..; meaning. Reference: input/README.md.'//NL

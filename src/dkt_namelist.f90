@@ -346,7 +346,7 @@ contains
     type(key_t), pointer :: k
     type(value_t), allocatable :: vals(:)
     character(len=:), allocatable :: base, item, why, takes
-    integer :: p, idx, first, step, slots, j, r, e, filled
+    integer :: p, idx, first, step, slots, j, r, e, filled, n
     integer(int64) :: total
     logical :: stored
     err = ''
@@ -367,15 +367,18 @@ contains
       return
     end if
 
-    ! The elements the values go to: first, first + step, ... (slots of them).
+    ! The elements the values go to: first, first + step, ... (slots of them). A sizing read
+    ! (open_to > 0) takes elements up to open_to and only notes the highest.
+    n = k%n
+    if (k%open_to > 0) n = k%open_to
     if (p > 0) then
       if (k%n == 0) then
         err = loc//': '//item//': '//base//' is not an array; write '//base//' = value'
         return
       end if
-      call select_elements(name(p + 1:len(name) - 1), base, k%n, first, step, slots, why)
+      call select_elements(name(p + 1:len(name) - 1), base, n, first, step, slots, why)
       if (len(why) > 0) then
-        err = loc//': '//item//': '//why
+        err = loc//': '//item//': '//why//k%size_note
         return
       end if
       if (index(name, ':') == 0) then
@@ -386,7 +389,7 @@ contains
     else
       first = 1
       step = 1
-      slots = max(k%n, 1)
+      slots = max(n, 1)
       takes = base//' takes '//itoa(slots)
     end if
     total = 0
@@ -396,7 +399,7 @@ contains
     if (total > slots) then
       err = loc//': '//item//': too many values ('//itoa64(total)
       if (total > size(vals)) err = err//', counting repeats'
-      err = err//'); '//takes//trim(merge(' value ', ' values', slots == 1))
+      err = err//'); '//takes//trim(merge(' value ', ' values', slots == 1))//k%size_note
       return
     end if
 
@@ -408,6 +411,8 @@ contains
         filled = filled + 1
         if (vals(j)%null) cycle
         if (k%n == 0) e = 0
+        k%top = max(k%top, e)
+        if (k%open_to > 0) cycle
         call store(k, e, vals(j)%tok, '&'//g//' '//element(base, e)//' = '// &
                    display(vals(j)%tok), why)
         if (len(why) > 0) then
@@ -486,7 +491,8 @@ contains
     character(len=11), parameter :: WHAT(3) = ['lower bound', 'upper bound', 'stride     ']
     integer :: c1, c2, v(3), j, last
     des = base//'('//sub//')'
-    range_text = base//' has '//itoa(n)//' elements, '//base//'(1) to '//base//'('//itoa(n)//')'
+    range_text = base//' has '//itoa(n)//trim(merge(' element ', ' elements', n == 1))//', '// &
+                 base//'(1) to '//base//'('//itoa(n)//')'
     why = ''
     first = 1
     step = 1

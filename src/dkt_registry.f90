@@ -42,6 +42,10 @@ module dkt_registry
     logical :: zero_ok = .false.             !! 0 is allowed besides the range ("use the rule")
     real(wp) :: lo = 0.0_wp, hi = 0.0_wp     !! range bounds (integers are compared as reals)
     character(len=:), allocatable :: origin  !! 'file:line' or '--set ...' of the last assignment
+    !> an array sized from the input: what its size follows, appended to an index error
+    character(len=:), allocatable :: size_note
+    integer :: open_to = 0 !! > 0: a sizing read, elements 1..open_to are counted, not stored
+    integer :: top = 0     !! the highest element a value went to
     real(wp), pointer :: r => null()
     real(wp), pointer :: ra(:) => null()
     integer, pointer :: i => null()
@@ -74,6 +78,7 @@ contains
     k%meaning = meaning
     k%choices = ''
     k%origin = ''
+    k%size_note = ''
     reg%keys = [reg%keys, k]
     if (word_index(reg%groups, k%group) == 0) reg%groups = trim(adjustl(reg%groups//' '//k%group))
   end subroutine add_key

@@ -9,13 +9,17 @@ program test_config
   use dkt_config, only: config_t, lattice_params_t, cli_t, config_load, config_validate, &
                         config_check_text, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
-                        config_output_dir, MAX_PARTICLES
+                        config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES
   use dkt_registry, only: printable
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
   character(len=*), parameter :: FILE = 'input/test.nml'
   character(len=1) :: none(0) !! no overrides
+  !> Sizes the particle arrays to 16 elements (count 0: the highest element given, here u(16)
+  !! set to its default), so that checks of the namelist forms can look at the elements after
+  !! those a text sets.
+  character(len=*), parameter :: P16 = '&particles u(16) = 0 /'//NL
   integer :: n_pass = 0, n_fail = 0
 
   call test_defaults()
@@ -29,6 +33,7 @@ program test_config
   call test_command_line()
   call test_errors()
   call test_particle_keys()
+  call test_particle_sizing()
   call test_particle_scenes_accept()
   call test_particle_warnings()
   call test_particle_errors()
@@ -141,9 +146,9 @@ contains
     call check('file and name kept: input/test.nml -> test', cfg%file == FILE .and. &
                cfg%name == 'test')
     call check('output dir defaults to runs/<name>', config_output_dir(cfg) == 'runs/test')
-    call check('MAX_PARTICLES is 16 and every particle array holds that many', &
-               MAX_PARTICLES == 16 .and. size(cfg%particles%diameter) == 16 .and. &
-               size(cfg%particles%motion) == 16 .and. size(cfg%particles%omega) == 16)
+    call check('no particles given: every particle array holds one element', &
+               size(cfg%particles%diameter) == 1 .and. size(cfg%particles%motion) == 1 .and. &
+               size(cfg%particles%omega) == 1)
     call check('default particles: none; D 0.2 cm, rho_p 1.01, at (1, 1), at rest, free', &
                cfg%particles%count == 0 .and. all(same(cfg%particles%diameter, 0.2_wp)) .and. &
                all(same(cfg%particles%density, 1.01_wp)) .and. &
@@ -297,8 +302,9 @@ contains
                all(same(back%particles%diameter, cfg%particles%diameter)) .and. &
                all(same(back%particles%omega, cfg%particles%omega)) .and. &
                same(back%particles%omega(3), -1.5_wp) .and. &
-               all(back%particles%motion(1:4) == [character(len=16) :: 'free', 'fixed', &
-                                                  'prescribed', 'free']) .and. &
+               size(back%particles%motion) == 3 .and. &
+               all(back%particles%motion == [character(len=16) :: 'free', 'fixed', &
+                                             'prescribed']) .and. &
                same(back%particles%gravity, 981.5_wp) .and. &
                back%coupling%bounce_back == 'bfl' .and. back%coupling%momentum == 'galilean' .and. &
                same(back%collision%stiffness, 2.5e-8_wp) .and. back%collision%substeps == 4)
@@ -308,7 +314,7 @@ contains
                index(text, 'tau = 0.8') > 0 .and. index(text, 'default: 0.65') > 0 .and. &
                index(text, 'allowed: 0.5 < tau <= 10') > 0 .and. index(text, '[cm]') > 0)
     call check('an array of choices is one line of quoted values', &
-               index(text, 'motion = ''free'', ''fixed'', ''prescribed'', ''free'', ') > 0)
+               index(text, 'motion = ''free'', ''fixed'', ''prescribed'' !') > 0)
   end subroutine test_round_trip
 
   subroutine test_cross_checks_accept()
@@ -367,9 +373,8 @@ contains
     call check('BGK: every rate 1/tau (E4)', all(abs(lp%s - 1.0_wp/0.8_wp) < 1.0e-15_wp))
     call check('field_every = field_interval/dt', lp%field_every == nint(0.01_wp/dt))
 
-    ! Particle 3 is smaller still but unused: only particles 1..count count.
     call load_ok('lattice scene with particles', '&particles count = 2, '// &
-                 'diameter = 0.2, 0.1, 0.02, x = 1.0, 1.0, y = 3.0, 2.0 /', cfg)
+                 'diameter = 0.2, 0.1, x = 1.0, 1.0, y = 3.0, 2.0 /', cfg)
     call derive_lattice(cfg, lp, err)
     call check('particles_on with count > 0', len(err) == 0 .and. lp%particles_on)
     call check('cells_per_diameter = smallest used diameter/dx = 0.1/0.004 = 25', &
@@ -527,12 +532,13 @@ contains
     type(config_t) :: cfg
     call load_ok('particle arrays as lists', '&particles count = 2, diameter = 0.2, 0.1,'// &
                  ' density = 1.5, 2.5, x = 1.0, 1.2, y = 4.2, 3.8 /', cfg)
-    call check('real lists fill elements 1 and 2, the rest keep defaults', &
-               cfg%particles%count == 2 .and. &
-               all(same(cfg%particles%diameter(1:3), [0.2_wp, 0.1_wp, 0.2_wp])) .and. &
-               all(same(cfg%particles%density(1:3), [1.5_wp, 2.5_wp, 1.01_wp])) .and. &
-               all(same(cfg%particles%x(1:3), [1.0_wp, 1.2_wp, 1.0_wp])) .and. &
-               all(same(cfg%particles%y(1:2), [4.2_wp, 3.8_wp])))
+    call check('real lists fill elements 1 and 2 of arrays of count = 2 elements', &
+               cfg%particles%count == 2 .and. size(cfg%particles%u) == 2 .and. &
+               all(same(cfg%particles%diameter, [0.2_wp, 0.1_wp])) .and. &
+               all(same(cfg%particles%density, [1.5_wp, 2.5_wp])) .and. &
+               all(same(cfg%particles%x, [1.0_wp, 1.2_wp])) .and. &
+               all(same(cfg%particles%y, [4.2_wp, 3.8_wp])) .and. &
+               all(same(cfg%particles%u, 0.0_wp)))
     call load_ok('particle array element', '&particles count = 2, y = 3, 2, diameter(2) = 0.1,'// &
                  ' motion(2) = ''fixed'' /', cfg)
     call check('diameter(2) set, diameter(1) default', &
@@ -578,6 +584,61 @@ contains
     call check('--set of a choice of &coupling', cfg%coupling%bounce_back == 'bfl')
   end subroutine test_particle_keys
 
+  !> The size of the particle arrays follows the input: particles.count when given above 0,
+  !! else the highest element any particle array is given; a pair scene at least 2; always at
+  !! least 1. Bugs caught: arrays left at a fixed size, count ignored when a larger index is
+  !! given, an index above count accepted or refused without the range (1) to (count), the
+  !! pair writing past the arrays, particles_allocate losing the values it keeps.
+  subroutine test_particle_sizing()
+    type(config_t) :: cfg
+    type(particles_cfg_t) :: p
+    character(len=*), parameter :: THREE = '&particles count = 3, x = 0.5, 1.0, 1.5, '// &
+                                   'y = 2, 2, 2 /'
+    call load_ok('count = 3', THREE, cfg)
+    call check('count = 3: arrays of 3 elements', size(cfg%particles%x) == 3 .and. &
+               size(cfg%particles%diameter) == 3 .and. size(cfg%particles%motion) == 3)
+    call load_ok('count = 3 and fewer values', '&particles count = 3, x = 0.5, 1.0, 1.5, '// &
+                 'y = 2 /'//NL//'&particles y(2:3) = 3, 4 /', cfg)
+    call check('count = 3 with values for fewer: still 3 elements, the rest defaults', &
+               size(cfg%particles%omega) == 3 .and. all(same(cfg%particles%omega, 0.0_wp)))
+    call load_ok('count by --set', '&particles x = 0.5, 1.0, 1.5, y = 2, 2, 2 /', cfg, &
+                 [character(len=20) :: 'particles.count=3'])
+    call check('count = 3 by --set: arrays of 3 elements', size(cfg%particles%v) == 3)
+    call load_ok('no count: highest element', '&particles omega(7) = 1 /', cfg)
+    call check('count 0: arrays sized by the highest element given to any array (7)', &
+               cfg%particles%count == 0 .and. size(cfg%particles%diameter) == 7 .and. &
+               size(cfg%particles%motion) == 7 .and. same(cfg%particles%omega(7), 1.0_wp))
+    call load_ok('count 0 given, a list', '&particles count = 0, y = 1, 2, 3, 4 /', cfg)
+    call check('count = 0 given: the longest list sizes the arrays (4)', &
+               size(cfg%particles%x) == 4)
+    call load_ok('a pair scene', '&pair gamma = 1.5, y_upper = 3 /', cfg)
+    call check('a pair scene: arrays of at least 2 elements', &
+               size(cfg%particles%diameter) >= 2 .and. size(cfg%particles%motion) >= 2)
+    call expect_error('error: an index above count', THREE//'&particles x(4) = 1 /', &
+                      [character(len=60) :: 'input/test.nml:1:', '&particles', 'x(4)', &
+                       'index 4', 'x(1) to x(3)', 'particles.count'])
+    call expect_error('error: a list longer than count', '&particles count = 2, '// &
+                      'diameter = 0.2, 0.1, 0.02 /', &
+                      [character(len=60) :: 'input/test.nml:1:', '&particles', 'diameter', &
+                       'too many values (3)', 'diameter takes 2 values', 'particles.count'])
+    call expect_error('error: an index above count by --set', THREE, &
+                      [character(len=60) :: '--set', 'particles.y(5)', 'index 5', &
+                       'y(1) to y(3)'], [character(len=20) :: 'particles.y(5)=1'])
+    ! a configuration built in code: particles_allocate keeps elements 1..min(old, new)
+    call particles_allocate(p, 2)
+    p%x = [0.5_wp, 1.5_wp]
+    p%motion(2) = 'fixed'
+    call particles_allocate(p, 3)
+    call check('particles_allocate keeps the values and gives new elements the defaults', &
+               size(p%x) == 3 .and. all(same(p%x, [0.5_wp, 1.5_wp, 1.0_wp])) .and. &
+               all(p%motion == [character(len=16) :: 'free', 'fixed', 'free']) .and. &
+               all(same(p%diameter, 0.2_wp)) .and. all(same(p%density, 1.01_wp)))
+    call particles_allocate(p, 1)
+    call check('particles_allocate shrinks to the first elements', &
+               size(p%x) == 1 .and. same(p%x(1), 0.5_wp) .and. size(p%motion) == 1)
+    call check('MAX_PARTICLES is the checkpoint limit, 10^6', MAX_PARTICLES == 1000000)
+  end subroutine test_particle_sizing
+
   subroutine test_particle_scenes_accept()
     type(config_t) :: cfg
     ! docs/model.md §7, case0_box: 2 x 8 cm, open ends, two equal disks D = 0.2 at (1, 7.2)
@@ -595,7 +656,7 @@ contains
     call load_ok('particles may overlap an open end', '&domain upper = ''outflow'' /'// &
                  ' &particles count = 1, y = 4.95 /', cfg)
     call load_ok('a particle just clear of the wall', '&particles count = 1, x = 0.1001 /', cfg)
-    call load_ok('only particles 1..count are checked', '&particles count = 1, y(2) = 1,'// &
+    call load_ok('a scene without particles may keep unused values', '&particles y(2) = 1,'// &
                  ' x(3) = -5, diameter(4) = 0.001, motion(5) = ''fixed'', u(5) = 1 /', cfg)
     ! (a run short enough that the path stays in the channel: 0.1 s moves it by (0.1, -0.2) cm)
     call load_ok('prescribed particles keep any velocity', '&particles count = 1,'// &
@@ -688,13 +749,13 @@ contains
 
   subroutine test_particle_errors()
     character(len=*), parameter :: TWO = '&particles count = 2, x = 1, 1, y = 2, 3 '
-    call expect_error('error: count above MAX_PARTICLES', '&particles count = 17 /', &
+    call expect_error('error: count above MAX_PARTICLES', '&particles count = 1000001 /', &
                       [character(len=40) :: 'input/test.nml:1:', '&particles', 'count', &
-                       '= 17', '0 <= count <= 16'])
+                       '= 1000001', '0 <= count <= 1000000'])
     call expect_error('error: negative count', '&particles count = -1 /', &
-                      [character(len=40) :: '&particles', 'count = -1', '0 <= count <= 16'])
-    call expect_error('error: index past MAX_PARTICLES', '&particles x(17) = 1 /', &
-                      [character(len=40) :: '&particles', 'x(17)', 'index 17', '16 elements'])
+                      [character(len=40) :: '&particles', 'count = -1', '0 <= count <= 1000000'])
+    call expect_error('error: index past MAX_PARTICLES', '&particles x(1000001) = 1 /', &
+                      [character(len=40) :: '&particles', 'x(1000001)', 'index 1000001'])
     call expect_error('error: diameter 0', TWO//'diameter(2) = 0 /', &
                       [character(len=40) :: 'input/test.nml:1:', '&particles diameter(2) = 0.0', &
                        'out of range', 'diameter(i) > 0'])
@@ -707,7 +768,8 @@ contains
     call expect_error('error: motion in a list not a choice', &
                       '&particles motion = free, moving /', &
                       [character(len=40) :: '&particles motion(2) = ''moving''', 'not one of'])
-    call expect_error('error: too many motions', '&particles motion(16) = free, fixed /', &
+    call expect_error('error: too many motions', &
+                      '&particles count = 16, motion(16) = free, fixed /', &
                       [character(len=40) :: '&particles', 'motion(16)', 'too many'])
     call expect_error('error: motion value too long', &
                       '&particles motion(1) = ''prescribed_motion'' /', &
@@ -814,7 +876,7 @@ contains
 
   subroutine test_nml_repeat_counts()
     type(config_t) :: cfg
-    call load_ok('r*c in a real array', '&particles diameter = 3*0.25, 0.5 /', cfg)
+    call load_ok('r*c in a real array', P16//'&particles diameter = 3*0.25, 0.5 /', cfg)
     call check('3*0.25 fills elements 1-3, the next value element 4, the rest keep 0.2', &
                all(same(cfg%particles%diameter(1:5), [0.25_wp, 0.25_wp, 0.25_wp, 0.5_wp, 0.2_wp])))
     call load_ok('r*c filling a whole array', '&particles x = 16*0.75 /', cfg)
@@ -822,7 +884,7 @@ contains
     call load_ok('1*c on a scalar', '&lbm tau = 1*0.9 /', cfg)
     call check('1*0.9 sets a scalar', same(cfg%lbm%tau, 0.9_wp))
     call load_ok('r*''text'' and r*text in an array of choices', &
-                 '&particles motion = 2*''fixed'', 2*Prescribed /', cfg)
+                 P16//'&particles motion = 2*''fixed'', 2*Prescribed /', cfg)
     call check('2*''fixed'', 2*prescribed fill elements 1-4', &
                all(cfg%particles%motion(1:5) == [character(len=16) :: 'fixed', 'fixed', &
                                                  'prescribed', 'prescribed', 'free']))
@@ -867,7 +929,7 @@ contains
     real(wp) :: e(16)
     integer :: j
     e = [(real(j, wp), j=1, 16)]
-    call load_ok('a:b', '&particles diameter(1:2) = 0.2, 0.1 /', cfg)
+    call load_ok('a:b', P16//'&particles diameter(1:2) = 0.2, 0.1 /', cfg)
     call check('diameter(1:2) = 0.2, 0.1', all(same(cfg%particles%diameter(1:3), &
                                                     [0.2_wp, 0.1_wp, 0.2_wp])))
     call load_ok('a:b:s', '&particles x(2:9:3) = 7, 8, 9 /', cfg)
@@ -894,23 +956,23 @@ contains
     call load_ok('a single element', '&particles diameter(16) = 0.5 /', cfg)
     call check('diameter(16) only', same(cfg%particles%diameter(16), 0.5_wp) .and. &
                all(same(cfg%particles%diameter(1:15), 0.2_wp)))
-    call load_ok('an element with a list', '&particles u(4) = 1, 2, 3 /', cfg)
+    call load_ok('an element with a list', P16//'&particles u(4) = 1, 2, 3 /', cfg)
     call check('u(4) = 1, 2, 3 fills elements 4-6', &
                all(same(cfg%particles%u(3:7), [0.0_wp, 1.0_wp, 2.0_wp, 3.0_wp, 0.0_wp])))
     call load_ok('a list from the first element, fewer values than elements', &
-                 '&particles x = 1, 2, 3 /', cfg)
+                 P16//'&particles x = 1, 2, 3 /', cfg)
     call check('x = 1, 2, 3 fills 1-3, the rest keep 1.0', &
                all(same(cfg%particles%x(1:4), [1.0_wp, 2.0_wp, 3.0_wp, 1.0_wp])))
     call load_ok('a list of all 16 values over three lines', '&particles omega = 1, 2, 3, 4,'// &
                  NL//' 5 6 7 8 9 10'//NL//' 11, 12, 13, 14, 15, 16 /', cfg)
     call check('16 values over lines', all(same(cfg%particles%omega, e)))
     call load_ok('blanks around an index (an extension)', &
-                 '&particles x ( 2 : 3 ) = 5 6, y (2) = 7 /', cfg)
+                 P16//'&particles x ( 2 : 3 ) = 5 6, y (2) = 7 /', cfg)
     call check('x ( 2 : 3 ) and y (2)', all(same(cfg%particles%x(1:4), [1.0_wp, 5.0_wp, &
                                                                         6.0_wp, 1.0_wp])) &
                .and. same(cfg%particles%y(2), 7.0_wp))
     call load_ok('a section in capitals, a signed index', &
-                 '&PARTICLES DIAMETER(+2:+3) = 2*0.3 /', cfg)
+                 P16//'&PARTICLES DIAMETER(+2:+3) = 2*0.3 /', cfg)
     call check('DIAMETER(+2:+3)', all(same(cfg%particles%diameter(1:4), [0.2_wp, 0.3_wp, &
                                                                          0.3_wp, 0.2_wp])))
   end subroutine test_nml_sections
@@ -995,7 +1057,7 @@ contains
   end subroutine test_nml_overrides
 
   subroutine test_nml_errors()
-    character(len=*), parameter :: L3 = '&particles'//NL//'  count = 0,'//NL//'  '
+    character(len=*), parameter :: L3 = '&particles'//NL//'  count = 16,'//NL//'  '
     call expect_error('error: repeat count 0', L3//'diameter = 0*0.1 /', &
                       [character(len=60) :: 'input/test.nml:3:', '&particles', 'diameter', &
                        '0*0.1', 'repeat count 0', 'not positive'])
@@ -1016,7 +1078,8 @@ contains
     call expect_error('error: more values than a section holds', L3//'x(1:2) = 1, 2, 3 /', &
                       [character(len=60) :: 'input/test.nml:3:', '&particles', 'x(1:2)', &
                        '1, 2, 3', 'too many values (3)', 'the section x(1:2) takes 2 values'])
-    call expect_error('error: more values than follow an element', '&particles x(15) = 1 2 3 /', &
+    call expect_error('error: more values than follow an element', &
+                      '&particles count = 16, x(15) = 1 2 3 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', 'x(15)', &
                        '1, 2, 3', 'too many values', 'from x(15) on, x takes 2 values'])
     call expect_error('error: a zero stride', L3//'x(1:4:0) = 1 /', &
@@ -1025,10 +1088,11 @@ contains
     call expect_error('error: a section without elements', '&particles x(3:2) = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', 'x(3:2)', &
                        '= 1', 'selects no element'])
-    call expect_error('error: a section starting outside', '&particles x(0:2) = 1 /', &
+    call expect_error('error: a section starting outside', '&particles count = 16, x(0:2) = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', 'x(0:2)', &
                        'element 0', 'out of range', 'x has 16 elements, x(1) to x(16)'])
-    call expect_error('error: a section ending outside', '&particles y(20:1:-1) = 1 /', &
+    call expect_error('error: a section ending outside', &
+                      '&particles count = 16, y(20:1:-1) = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', 'y(20:1:-1)', &
                        'element 20', 'y(1) to y(16)'])
     call expect_error('error: an element outside', L3//'omega(17) = 1 /', &
@@ -1098,11 +1162,11 @@ contains
                        'not closed'])
     ! 99999999999 is a whole number: once called 'not a whole number'
     call expect_error('error: an index beyond the integer range', &
-                      '&particles x(99999999999) = 1 /', &
+                      '&particles count = 16, x(99999999999) = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', &
                        'x(99999999999)', 'out of range', 'x(1) to x(16)'])
     call expect_error('error: a section bound beyond the integer range', &
-                      '&particles x(1:99999999999) = 1 /', &
+                      '&particles count = 16, x(1:99999999999) = 1 /', &
                       [character(len=60) :: 'input/test.nml:1:', '&particles', &
                        'x(1:99999999999)', 'upper bound', 'out of range', 'x(1) to x(16)'])
     call expect_error('error: a real beyond the double range', '&domain width = 1e999 /', &

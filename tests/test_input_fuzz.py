@@ -254,8 +254,8 @@ CASES: dict[str, Bad] = {
     ),
     "negative-ramp-time": Bad(args=S("inlet.ramp_time", "-1"), key="inlet.ramp_time", rng=True),
     "negative-density": Bad(args=S("fluid.density", "-1"), key="fluid.density", rng=True),
-    "particle-count-17": Bad(
-        args=S("particles.count", "17"), base="single.nml", key="particles.count", rng=True
+    "particle-count-above-the-checkpoint-limit": Bad(
+        args=S("particles.count", "1000001"), base="single.nml", key="particles.count", rng=True
     ),
     "negative-diameter": Bad(
         args=S("particles.diameter(1)", "-0.25"),
@@ -301,17 +301,23 @@ CASES: dict[str, Bad] = {
     "index-out-of-range": Bad(
         args=S("particles.x(17)", "1.0"),
         base="single.nml",
-        pieces=["--set particles.x(17)=1.0", "&particles", "x(17)", "x(1) to x(16)"],
+        pieces=[
+            "--set particles.x(17)=1.0",
+            "&particles",
+            "x(17)",
+            "x(1) to x(1)",
+            "particles.count",
+        ],
     ),
     "index-zero-in-file": Bad(
         ("x = 1.0", "x(0) = 1.0"),
         base="single.nml",
-        pieces=["{file}:{line}:", "&particles", "x(0)", "x(1) to x(16)"],
+        pieces=["{file}:{line}:", "&particles", "x(0)", "x(1) to x(1)"],
     ),
     "section-out-of-range": Bad(
         ("x = 1.0", "x(15:17) = 3*1.0"),
         base="single.nml",
-        pieces=["{file}:{line}:", "&particles", "x(15:17)", "17", "x(16)"],
+        pieces=["{file}:{line}:", "&particles", "x(15:17)", "15", "x(1) to x(1)"],
     ),
     "section-stride-0": Bad(
         ("x = 1.0", "x(1:4:0) = 1.0"),
@@ -322,7 +328,7 @@ CASES: dict[str, Bad] = {
     "index-beyond-the-integer-range": Bad(
         ("x = 1.0", "x(99999999999) = 1.0"),
         base="single.nml",
-        pieces=["{file}:{line}:", "&particles", "x(99999999999)", "x(1) to x(16)"],
+        pieces=["{file}:{line}:", "&particles", "x(99999999999)", "x(1) to x(1)"],
     ),
     "repeat-count-beyond-the-integer-range": Bad(
         ("diameter = 0.25", "diameter = 2147483648*0.25"),
@@ -361,7 +367,7 @@ CASES: dict[str, Bad] = {
     "repeats-past-the-array": Bad(
         ("diameter = 0.25", "diameter = 17*0.25"),
         base="single.nml",
-        pieces=["{file}:{line}:", "&particles", "diameter", "16"],
+        pieces=["{file}:{line}:", "&particles", "diameter", "17", "takes 1 value"],
     ),
     "more-values-than-a-scalar": Bad(
         ("tau = 1.0", "tau = 1.0, 0.8"), pieces=["{file}:{line}:", "&lbm", "tau"]

@@ -21,7 +21,7 @@
 program test_namelist_compiler
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
-  use dkt_config, only: config_t, config_load, read_text_file, MAX_PARTICLES
+  use dkt_config, only: config_t, particles_cfg_t, config_load, read_text_file, particles_allocate
   use dkt_registry, only: lower_case
   use dkt_check, only: check, finish
   implicit none
@@ -33,6 +33,10 @@ program test_namelist_compiler
   character(len=:), allocatable :: path, text, err
   type(config_t) :: def, cfg
   integer :: j
+  !> Elements of each particle array for read(nml=): the highest index the files give. config_load
+  !! sizes its arrays to that index (no particles.count in the files), so a section with an open
+  !! bound (v(:), omega(3:)) covers the same elements for both readers.
+  integer, parameter :: NSLOT = 16
 
   call get_command_argument(1, dir)
   if (len_trim(dir) == 0) error stop 'usage: test_namelist_compiler DIR'
@@ -105,40 +109,53 @@ contains
     type(config_t), intent(in) :: def, cfg
     integer :: count, u_nml, ios, k
     logical :: ok
-    real(wp), dimension(MAX_PARTICLES) :: diameter, density, x, y, u, v, omega
-    character(len=16) :: motion(MAX_PARTICLES)
+    real(wp), dimension(:), allocatable :: diameter, density, x, y, u, v, omega
+    character(len=16), allocatable :: motion(:)
     real(wp) :: gravity
     character(len=256) :: msg
+    type(particles_cfg_t) :: d, p
+    character(len=100) :: detail
     namelist /particles/ count, diameter, density, x, y, u, v, omega, motion, gravity
-    count = def%particles%count
-    diameter = def%particles%diameter
-    density = def%particles%density
-    x = def%particles%x
-    y = def%particles%y
-    u = def%particles%u
-    v = def%particles%v
-    omega = def%particles%omega
-    motion = def%particles%motion
-    gravity = def%particles%gravity
+    ! config_load sized the defaults to 1 element: each further element takes the same default
+    d = def%particles
+    call particles_allocate(d, NSLOT)
+    count = d%count
+    diameter = d%diameter
+    density = d%density
+    x = d%x
+    y = d%y
+    u = d%u
+    v = d%v
+    omega = d%omega
+    motion = d%motion
+    gravity = d%gravity
     if (.not. open_file(path, u_nml)) return
     do ! every occurrence of the group, in order, as config_load applies them
       read (u_nml, nml=particles, iostat=ios, iomsg=msg)
       if (.not. read_on(path, 'particles', ios, msg)) exit
     end do
     close (u_nml)
-    call expect(path//' &particles count', count == cfg%particles%count, '')
-    call reals(path, '&particles diameter', diameter, cfg%particles%diameter)
-    call reals(path, '&particles density', density, cfg%particles%density)
-    call reals(path, '&particles x', x, cfg%particles%x)
-    call reals(path, '&particles y', y, cfg%particles%y)
-    call reals(path, '&particles u', u, cfg%particles%u)
-    call reals(path, '&particles v', v, cfg%particles%v)
-    call reals(path, '&particles omega', omega, cfg%particles%omega)
-    call reals(path, '&particles gravity', [gravity], [cfg%particles%gravity])
+    ! The program's arrays end at the highest index given: no longer than read(nml=)'s; the
+    ! elements past their end must have kept the defaults in read(nml=)'s arrays.
+    write (detail, '(a,i0,a,i0)') 'config_load made ', size(cfg%particles%diameter), &
+      ' elements, more than ', NSLOT
+    call expect(path//' &particles arrays no longer than the highest index', &
+                size(cfg%particles%diameter) <= NSLOT, trim(detail))
+    p = cfg%particles
+    call particles_allocate(p, NSLOT)
+    call expect(path//' &particles count', count == p%count, '')
+    call reals(path, '&particles diameter', diameter, p%diameter)
+    call reals(path, '&particles density', density, p%density)
+    call reals(path, '&particles x', x, p%x)
+    call reals(path, '&particles y', y, p%y)
+    call reals(path, '&particles u', u, p%u)
+    call reals(path, '&particles v', v, p%v)
+    call reals(path, '&particles omega', omega, p%omega)
+    call reals(path, '&particles gravity', [gravity], [p%gravity])
     ! choices are stored in lower case by the program
     ok = .true.
-    do k = 1, MAX_PARTICLES
-      ok = ok .and. lower_case(motion(k)) == cfg%particles%motion(k)
+    do k = 1, size(motion)
+      ok = ok .and. lower_case(motion(k)) == p%motion(k)
     end do
     call expect(path//' &particles motion', ok, '')
   end subroutine compare_particles

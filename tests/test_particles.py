@@ -318,3 +318,63 @@ def test_galilean_invariant_momentum_exchange_also_gives_the_published_re_max(
     print(f"Galilean-invariant rule: Re_max = {re_max:.3f}")
     assert abs(re_max - 17.3) < 0.03 * 17.3
     assert not np.array_equal(s["v"], single_run["v"])
+
+
+def many_particles_scene(path: Path, extra: str = "") -> Path:
+    """A closed 2 x 2 cm box holding 20 disks (D = 0.15 cm) on a 5 x 4 grid, 0.35 cm apart
+    (no contact), the even ones fixed and the odd ones free; more particles than the arrays
+    once held (16), so the arrays must follow particles.count."""
+    xs = [0.3, 0.65, 1.0, 1.35, 1.7]
+    ys = [0.4, 0.8, 1.2, 1.6]
+    x = ", ".join(str(xi) for yi in ys for xi in xs)
+    y = ", ".join(str(yi) for yi in ys for xi in xs)
+    motion = ", ".join("'fixed'" if k % 2 == 0 else "'free'" for k in range(1, 21))
+    path.write_text(
+        "&domain width = 2.0, height = 2.0 /\n"
+        "&lbm dx = 0.02 /\n"
+        f"&particles count = 20, diameter = 20*0.15, x = {x},\n"
+        f"  y = {y},\n"
+        f"  motion = {motion} /\n"
+        "&run steps = 5 /\n"
+        "&output series_interval = 0.0 /\n" + extra
+    )
+    return path
+
+
+def test_twenty_particles_pass_check_and_run_on_2_ranks(tmp_path: Path) -> None:
+    """particles.count = 20 sizes the arrays: the scene passes --check and runs 5 steps on 2
+    ranks, and the particle series hold 20 particles that start where the file puts them, the
+    fixed ones staying there. Catches arrays of a fixed size (a 17th particle refused or
+    dropped) and elements past the old size lost between reading and the run."""
+    nml = many_particles_scene(tmp_path / "many.nml")
+    out = tmp_path / "many"
+    run(nml, 1, [], out, extra=["--check"])
+    assert not (out / "many.h5").exists(), "--check writes no output"
+    run(nml, 2, [], out, timeout=600)
+    s = series(out / "many.h5")
+    assert s["x"].shape[1] == 20 and s["y"].shape[1] == 20
+    xs = np.tile([0.3, 0.65, 1.0, 1.35, 1.7], 4)
+    ys = np.repeat([0.4, 0.8, 1.2, 1.6], 5)
+    assert np.allclose(s["x"][0], xs, atol=1e-12) and np.allclose(s["y"][0], ys, atol=1e-12)
+    fixed = np.arange(20) % 2 == 1  # particles 2, 4, ..., 20
+    assert np.allclose(s["x"][-1, fixed], xs[fixed], atol=1e-12)
+    assert np.allclose(s["y"][-1, fixed], ys[fixed], atol=1e-12)
+    assert np.all(s["y"][-1, ~fixed] < ys[~fixed]), "the free disks start to settle"
+
+
+@pytest.mark.parametrize("where", ["file", "set"])
+def test_an_index_above_count_names_the_range_up_to_count(tmp_path: Path, where: str) -> None:
+    """An element past particles.count (21 of 20), in the file or by --set, is refused on 2
+    ranks with one message naming the key, the index and the range x(1) to x(20); no output is
+    created. Catches arrays larger than count (the value accepted silently) and a range that
+    names a fixed size instead of count."""
+    extra = "&particles x(21) = 1.0 /\n" if where == "file" else ""
+    nml = many_particles_scene(tmp_path / "many.nml", extra)
+    sets = ["particles.x(21)=1.0"] if where == "set" else []
+    out = tmp_path / "many"
+    proc = run(nml, 2, sets, out, check=False)
+    err = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "x(21)" in err and "index 21" in err and "x(1) to x(20)" in err, err
+    assert err.count("x(1) to x(20)") == 1, f"one message, from rank 0:\n{err}"
+    assert not out.exists(), "no output for a refused input"
