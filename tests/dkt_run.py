@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shlex
 import signal
@@ -141,3 +142,38 @@ def run_args(
             f"hang: no exit within {timeout} s: {' '.join(cmd)}\n{out}\n{err}"
         ) from None
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+def tree_digest(path: Path) -> dict[str, str]:
+    """sha256 of every file below path, by relative name (directories as 'dir')."""
+    digest = {}
+    for p in sorted(path.rglob("*")):
+        rel = str(p.relative_to(path))
+        digest[rel] = "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
+    return digest
+
+
+def sigterm_when_logged(
+    nml: str | Path, ranks: int, sets: list[str], outdir: Path, logged: str, timeout: float = 120.0
+) -> subprocess.CompletedProcess[str]:
+    """Run dktlbm (scene `nml` in input/ or a path) with output.dir = outdir, wait until its log
+    holds `logged` (e.g. a progress line: the run is stepping), send SIGTERM to every rank as a
+    batch system does, and return the finished process."""
+    path = Path(nml)
+    if not path.exists():
+        path = INPUT / nml
+    cmd = [*mpi_command(ranks), str(EXE), str(path)]
+    for s in [*sets, f"output.dir={outdir}"]:
+        cmd += ["--set", s]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=mpi_env(), start_new_session=True)
+    deadline = time.time() + timeout
+    log = outdir / f"{path.stem}.log"
+    while time.time() < deadline:
+        if log.exists() and logged in log.read_text():
+            break
+        time.sleep(0.05)
+    for pid in session_pids(proc.pid, "dktlbm"):
+        os.kill(pid, signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=timeout)
+    return subprocess.CompletedProcess(cmd, proc.returncode, stdout, stderr)

@@ -17,7 +17,6 @@ the expected pieces of each message are derived from the edit, not copied from t
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import re
@@ -29,7 +28,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_env, run_args
+from dkt_run import EXE, INPUT, ROOT, mpi_env, run_args, tree_digest
 
 RANKS = 2
 TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails the test
@@ -62,15 +61,6 @@ def write_scene(
     path = tmp_path / "bad.nml"
     path.write_text(text)
     return path, line
-
-
-def tree_digest(path: Path) -> dict[str, str]:
-    """sha256 of every file below path, by relative name (directories as 'dir')."""
-    digest = {}
-    for p in sorted(path.rglob("*")):
-        rel = str(p.relative_to(path))
-        digest[rel] = "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
-    return digest
 
 
 def error_lines(stderr: str) -> list[str]:

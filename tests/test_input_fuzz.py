@@ -30,7 +30,6 @@ cleanly as above; never a crash (signal, runtime error text), never a hang.
 
 from __future__ import annotations
 
-import hashlib
 import random
 import re
 from collections.abc import Callable
@@ -39,7 +38,7 @@ from pathlib import Path
 
 import pytest
 
-from dkt_run import INPUT, ROOT, run_args
+from dkt_run import INPUT, ROOT, run_args, tree_digest
 
 RANKS = 2
 TIMEOUT = 20.0  # s; each case stops during set-up (about 0.4 s), longer is a hang
@@ -78,15 +77,6 @@ def poiseuille() -> str:
     text = (INPUT / "poiseuille.nml").read_text()
     assert "t_end = 2000.0" in text
     return text.replace("t_end = 2000.0", "steps = 5")
-
-
-def tree_digest(path: Path) -> dict[str, str]:
-    """sha256 of every file below path, by relative name (directories as 'dir')."""
-    digest = {}
-    for p in sorted(path.rglob("*")):
-        rel = str(p.relative_to(path))
-        digest[rel] = "dir" if p.is_dir() else hashlib.sha256(p.read_bytes()).hexdigest()
-    return digest
 
 
 def populate(outdir: Path) -> dict[str, str]:

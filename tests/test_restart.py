@@ -9,17 +9,14 @@ attributes, the CSV file and the XDMF sidecar byte for byte.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
-import time
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 
-from dkt_run import EXE, INPUT, mpi_command, mpi_env, run, run_args, session_pids
+from dkt_run import INPUT, run, run_args, sigterm_when_logged
 
 STEPS = 1200
 SETS = [
@@ -105,27 +102,10 @@ def test_sigterm_checkpoints_exits_zero_and_the_resumed_run_matches(tmp_path: Pa
     reference = tmp_path / "reference"
     run("case0.nml", 2, LONG_SETS, reference, timeout=600)
     out = tmp_path / "run"
-    cmd = [*mpi_command(2), str(EXE), str(INPUT / "case0.nml")]
-    for s in [*LONG_SETS, "run.progress_every=100", f"output.dir={out}"]:
-        cmd += ["--set", s]
-    proc = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=mpi_env(),
-        start_new_session=True,
-    )
-    # wait until the run is stepping (its first progress line is in the log)
-    deadline = time.time() + 120
-    log = out / "case0.log"
-    while time.time() < deadline:
-        if log.exists() and f"step 100/{LONG}" in log.read_text():
-            break
-        time.sleep(0.05)
-    for pid in session_pids(proc.pid, "dktlbm"):
-        os.kill(pid, signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=120)
+    # SIGTERM once the run is stepping (its first progress line is in the log)
+    proc = sigterm_when_logged("case0.nml", 2, [*LONG_SETS, "run.progress_every=100"], out,
+                               f"step 100/{LONG}")
+    stdout, stderr = proc.stdout, proc.stderr
     assert proc.returncode == 0, stderr
     assert "stopped on signal SIGTERM" in stdout
     assert "--restart" in stdout

@@ -17,17 +17,15 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env, run, run_args, session_pids
+from dkt_run import INPUT, ROOT, run, run_args, sigterm_when_logged
 
 RANKS = 2
 GUARD_RE = re.compile(
@@ -140,20 +138,9 @@ def test_a_wall_limit_stop_keeps_the_output_up_to_its_step(tmp_path: Path) -> No
 def test_a_signal_stop_keeps_the_output_up_to_its_step(tmp_path: Path) -> None:
     """SIGTERM mid-run: as the wall limit, with stop_reason 'signal'."""
     out = tmp_path / "s"
-    cmd = [*mpi_command(RANKS), str(EXE), str(INPUT / "case0.nml")]
-    for s in [*CASE0, "run.steps=120000", "run.progress_every=100", f"output.dir={out}"]:
-        cmd += ["--set", s]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=mpi_env(), start_new_session=True)
-    deadline = time.time() + 120
-    log = out / "case0.log"
-    while time.time() < deadline:
-        if log.exists() and "step 100/" in log.read_text():
-            break
-        time.sleep(0.05)
-    for pid in session_pids(proc.pid, "dktlbm"):
-        os.kill(pid, signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=120)
+    sets = [*CASE0, "run.steps=120000", "run.progress_every=100"]
+    proc = sigterm_when_logged("case0.nml", RANKS, sets, out, "step 100/")
+    stdout, stderr = proc.stdout, proc.stderr
     assert proc.returncode == 0, stderr
     m = re.search(r"stopped on signal SIGTERM after step (\d+) of", stdout)
     assert m, stdout
