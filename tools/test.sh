@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Command B: set up and build (tools/setup.sh), then run every test except the benchmarks.
+# Command B: set up and build (tools/setup.sh), then run every test except the benchmarks and
+# the long demonstrations (ctest --preset long).
 #
 #   tools/test.sh [ctest options...]     e.g. tools/test.sh -L unit
 #
@@ -9,4 +10,4 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$root/tools/setup.sh"
 cd "$root"
-exec ctest --preset release -LE perf -j "$(nproc)" "$@"
+exec ctest --preset release -LE 'perf|long' -j "$(nproc)" "$@"
