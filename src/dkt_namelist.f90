@@ -21,13 +21,11 @@
 !> and stored here; ranges and choices are checked later (check_key), after every override.
 module dkt_namelist
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
-  use, intrinsic :: ieee_exceptions, only: ieee_set_halting_mode, ieee_usual
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
-                          KEY_CHOICE, find_key, has_group, unknown_group_hint, unknown_key_hint, &
-                          allowed_text, text_length, lower_case, quoted, itoa
+                          KEY_CHOICE, read_real, find_key, has_group, unknown_group_hint, &
+                          unknown_key_hint, allowed_text, text_length, lower_case, quoted, itoa
   implicit none
   private
   public :: parse_namelist, apply_override
@@ -634,21 +632,6 @@ contains
       end if
     end select
   end subroutine store
-
-  !> Read real `text` (of real_form 1) into `x`, with no floating-point trap: a literal beyond
-  !! the double range (1e999) gives Infinity and store() says it is too large, where a build
-  !! that traps overflow (-ffpe-trap=overflow) would otherwise die inside the read. The
-  !! exception flags and halting modes are restored afterwards.
-  subroutine read_real(text, x, ios)
-    character(len=*), intent(in) :: text
-    real(wp), intent(out) :: x
-    integer, intent(out) :: ios
-    type(ieee_status_type) :: status
-    call ieee_get_status(status)
-    call ieee_set_halting_mode(ieee_usual, .false.)
-    read (text, *, iostat=ios) x
-    call ieee_set_status(status)
-  end subroutine read_real
 
   !> 1 if `t` is a real number as list-directed input writes it ([sign] digits with an optional
   !! point, then an optional exponent E/D[sign]digits or sign digits), 2 for Inf or NaN, 0

@@ -7,6 +7,8 @@
 !> accepts, and the hints for an unknown group or key (the known names and the closest one).
 module dkt_registry
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
+  use, intrinsic :: ieee_exceptions, only: ieee_set_halting_mode, ieee_usual
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   implicit none
@@ -15,7 +17,7 @@ module dkt_registry
   public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
   public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice, add_choices
   public :: find_key, has_group, origin_of, blame, unknown_group_hint, unknown_key_hint, check_key
-  public :: value_text, allowed_text, type_name, text_length, fmt_real
+  public :: value_text, allowed_text, type_name, text_length, fmt_real, read_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
   public :: printable
 
@@ -440,6 +442,23 @@ contains
     end select
   end function type_name
 
+  !> Read real `text` (a real as list-directed input writes it) into `x`, with no
+  !! floating-point trap: a literal beyond the double range (1e999) gives Infinity and the
+  !! reader says it is too large, where a build that traps overflow (-ffpe-trap=overflow) would
+  !! otherwise die inside the read. The exception flags and halting modes are restored
+  !! afterwards. fmt_real reads its candidate texts back the same way: a short text of the
+  !! largest double rounds up beyond it.
+  subroutine read_real(text, x, ios)
+    character(len=*), intent(in) :: text
+    real(wp), intent(out) :: x
+    integer, intent(out) :: ios
+    type(ieee_status_type) :: status
+    call ieee_get_status(status)
+    call ieee_set_halting_mode(ieee_usual, .false.)
+    read (text, *, iostat=ios) x
+    call ieee_set_status(status)
+  end subroutine read_real
+
   !> The shortest decimal text that reads back to exactly `x`, with a decimal point or an
   !! exponent so that it reads as a real: 2.0, 0.004, 0.135526, 1.0e-7, -3.5e20.
   function fmt_real(x) result(s)
@@ -461,7 +480,7 @@ contains
     do d = 1, 17
       write (fmt, '(a,i0,a)') '(es40.', d, 'e3)'
       write (buf, fmt) abs(x)
-      read (buf, *, iostat=ios) y
+      call read_real(buf, y, ios)
       if (ios == 0 .and. transfer(y, 0_int64) == transfer(abs(x), 0_int64)) exit ! bitwise
     end do
     buf = adjustl(buf)

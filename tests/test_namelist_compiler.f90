@@ -110,7 +110,9 @@ contains
     integer :: count, u_nml, ios, k
     logical :: ok
     real(wp), dimension(:), allocatable :: diameter, density, x, y, u, v, omega
-    character(len=16), allocatable :: motion(:)
+    ! fixed size: gfortran 12 -Wall takes an allocatable character array assigned from d%motion
+    ! for possibly uninitialised, and the CI build treats warnings as errors
+    character(len=16) :: motion(NSLOT)
     real(wp) :: gravity
     character(len=256) :: msg
     type(particles_cfg_t) :: d, p
