@@ -15,7 +15,7 @@
 !> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the
 !> wall velocity and the mean density of its fluid neighbours.
 module dkt_particles
-  use mpi_f08, only: MPI_Gatherv, MPI_Bcast
+  use mpi_f08, only: MPI_Gatherv, MPI_Allgatherv, MPI_Bcast
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_rows_for
@@ -223,20 +223,27 @@ contains
     end subroutine resize
   end subroutine particles_find_links
 
-  !> E6 and E7 on every link: write the bounced population f_ibar(x_f, t+1) into the slot of
-  !! the solid node that x_f pulls it from, and add the link's momentum exchange to the row
-  !! sums. f holds post-collision populations with halos and ghosts complete.
-  subroutine particles_bounce(ps, dom, f)
+  !> E6 and E7 on the links whose fluid node lies in rows j1..j2: write the bounced population
+  !! f_ibar(x_f, t+1) into the slot of the solid node that x_f pulls it from, and add the link's
+  !! momentum exchange to the sums of rows j1..j2 (restarted here). f holds post-collision
+  !! populations, with the ghosts complete and, when j1..j2 touches row 1 or nyl, the halo rows
+  !! too. A link reads only fluid nodes (x_f, and x_f - e_i for Yu/BFL) and writes only a solid
+  !! slot that no other link reads and only x_f pulls, so links of rows 2..nyl-1 neither read
+  !! nor write a halo row, and the links can be taken in row groups while the halo travels.
+  subroutine particles_bounce(ps, dom, f, j1, j2)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
+    integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
     integer :: l, k, i, j, d, db
     real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
-    ps%rows = 0.0_wp
+    if (j2 < j1) return
+    ps%rows(:, j1:j2, :) = 0.0_wp
     do l = 1, ps%nlinks
+      j = ps%ly(l)
+      if (j < j1 .or. j > j2) cycle
       k = ps%lp(l)
       i = ps%lx(l)
-      j = ps%ly(l)
       d = ps%ld(l)
       db = opp(d)
       q = ps%lq(l)
@@ -302,10 +309,13 @@ contains
   end function owner_of
 
   !> E7 totals: every rank sends its per-row sums to the particle's owner, which adds them in
-  !! global row order, so the total has the same bits on any number of ranks.
-  subroutine particles_reduce_forces(ps, dom)
+  !! global row order, so the total has the same bits on any number of ranks. With everywhere,
+  !! every rank receives the sums and adds them in the same order (the same bits), so that no
+  !! state needs to be sent back when nothing moves.
+  subroutine particles_reduce_forces(ps, dom, everywhere)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
+    logical, intent(in) :: everywhere
     real(wp), allocatable :: all(:, :)
     integer :: counts(dom%nranks), displs(dom%nranks)
     integer :: k, r, j, own, y0, nyl
@@ -317,10 +327,15 @@ contains
     end do
     allocate (all(3, dom%ny))
     do k = 1, ps%n
-      own = owner_of(ps%p(k), dom)
-      call MPI_Gatherv(ps%rows(:, :, k), 3*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, own, &
-                       dom%comm)
-      if (dom%rank /= own) cycle
+      if (everywhere) then
+        call MPI_Allgatherv(ps%rows(:, :, k), 3*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, &
+                            dom%comm)
+      else
+        own = owner_of(ps%p(k), dom)
+        call MPI_Gatherv(ps%rows(:, :, k), 3*dom%nyl, mpi_wp, all, counts, displs, mpi_wp, &
+                         own, dom%comm)
+        if (dom%rank /= own) cycle
+      end if
       s = 0.0_wp
       do j = 1, dom%ny
         s = s + all(:, j)
@@ -361,11 +376,15 @@ contains
   !! their given velocity; the owners then send the new states to every rank, which keeps a
   !! ghost copy of every particle. A particle whose centre crossed into another slab has a new
   !! owner from the next step on. Last, the nodes the particles uncovered are refilled.
-  subroutine particles_move(ps, dom, f, walls_y)
+  !! When every particle is fixed (moving false; the forces were summed on every rank), every
+  !! rank computes the contact forces itself from the same state, with the same bits, and
+  !! nothing is sent or refilled: no node is uncovered.
+  subroutine particles_move(ps, dom, f, walls_y, moving)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: f(0:, 0:, 0:)
     logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
+    logical, intent(in) :: moving    !! some particle is free or prescribed
     type(particle_t), allocatable :: old(:)
     real(wp) :: h, ax, ay, gy, cx(ps%n), cy(ps%n), xs(ps%n), ys(ps%n), state(10)
     integer :: k, s, own
@@ -373,7 +392,7 @@ contains
     h = 1.0_wp/ps%substeps
     do k = 1, ps%n
       own = owner_of(old(k), dom)
-      if (own == dom%rank) then
+      if (own == dom%rank .or. .not. moving) then
         associate (p => ps%p(k))
           do s = 1, ps%substeps
             xs = old%x
@@ -404,13 +423,14 @@ contains
           state = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
         end associate
       end if
+      if (.not. moving) cycle
       call MPI_Bcast(state, size(state), mpi_wp, own, dom%comm)
       associate (p => ps%p(k))
         p%x = state(1); p%y = state(2); p%u = state(3); p%v = state(4); p%omega = state(5)
         p%fx = state(6); p%fy = state(7); p%torque = state(8); p%cx = state(9); p%cy = state(10)
       end associate
     end do
-    call refill(ps, old, dom, f)
+    if (moving) call refill(ps, old, dom, f)
   end subroutine particles_move
 
   !> Nodes inside a particle's old disk and outside every new one become fluid: equilibrium at

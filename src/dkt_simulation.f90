@@ -301,29 +301,40 @@ contains
     sim%f_next => tmp
   end subroutine swap_lattices
 
-  !> One step with particles: the halo is completed before the sweep because a boundary link
-  !! next to a slab face reads the neighbour's populations (E6), then the bounced populations
-  !! are set, the lattice swept, forces summed (E7), the particles moved (E8–E11) and the
-  !! window moved after them (docs/model.md §5), before the boundary links are found for the
-  !! next step.
+  !> One step with particles, overlapped like fluid_step: while the crossing populations
+  !! travel, the links whose fluid node lies in rows 2..nyl-1 are bounced (E6) and those rows
+  !! swept; their links read and write no halo row, and the solid slots they set are pulled only
+  !! by their own fluid nodes. Then the links of rows 1 and nyl (Yu and BFL read a second fluid
+  !! node in the halo row, and a solid node there is overwritten by the exchange) and those two
+  !! rows. Each node sees the same operations in the same order as with the halo completed
+  !! first, and each row's force sum adds its links in the same order, so the bits do not
+  !! change. Forces are summed (E7), the particles moved (E8–E11) and the window moved after
+  !! them (docs/model.md §5), before the boundary links are found for the next step.
   subroutine particle_step(sim, n, failure)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
     failure = ''
-    call halo_start(sim%dom, sim%f)
-    call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-    call halo_finish(sim%dom, sim%f)
-    call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-    call particles_bounce(sim%parts, sim%dom, sim%f)
-    call stream_collide(sim%coll, sim%f, sim%f_next, sim%dom%nxp, sim%dom%nx, sim%dom%nyl, 1, &
-                        sim%dom%nyl)
+    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+      call halo_start(sim%dom, sim%f)
+      call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+      call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call halo_finish(sim%dom, sim%f)
+      call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+      call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
+      call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
+      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+    end associate
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     call particles_interior(sim%parts, sim%dom, sim%f_next)
-    call particles_reduce_forces(sim%parts, sim%dom)
+    ! fixed particles only: every rank sums the forces, so that no state is sent back
+    call particles_reduce_forces(sim%parts, sim%dom,.not. sim%particles_move)
     ! the owners move their particles (fixed ones stay) and send every rank the new state
     call particles_move(sim%parts, sim%dom, sim%f_next, &
-                        sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall')
+                        sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall', &
+                        sim%particles_move)
     if (sim%window_on) call follow_particles(sim, n)
     if (sim%particles_move) call check_particle_places(sim, n, failure)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
