@@ -1,12 +1,13 @@
 !> Working precision, integer kinds, the matching MPI datatype and physical constants.
 module dkt_kinds
-  use iso_fortran_env, only: real64, int32, int64
+  use iso_fortran_env, only: real32, real64, int32, int64
   use mpi_f08, only: MPI_Datatype, MPI_DOUBLE_PRECISION
   implicit none
   private
-  public :: wp, ip, i8, mpi_wp, pi, cs2
+  public :: wp, sp, ip, i8, mpi_wp, pi, cs2
 
   integer, parameter :: wp = real64 !! working precision of every field and particle quantity
+  integer, parameter :: sp = real32 !! storage kind of the populations with lbm.precision = 'single'
   integer, parameter :: ip = int32  !! default integer kind for indices
   integer, parameter :: i8 = int64  !! counters that may exceed 2**31 (cell updates, bytes)
   type(MPI_Datatype), parameter :: mpi_wp = MPI_DOUBLE_PRECISION !! MPI type matching wp
