@@ -3,13 +3,21 @@
 !>  - the moments of f^eq are the E2 equilibria;
 !>  - the fused sweep equals pull-streaming plus the 9x9 matrix form of E1 with E3 rates,
 !>    without and with a body force (Guo's term taken in velocity space and transformed);
-!>  - MRT with all rates equal to 1/tau gives the BGK sweep (E4) to round-off.
+!>  - MRT with all rates equal to 1/tau gives the BGK sweep (E4) to round-off;
+!>  - the row-by-row sweep (sweep_rows) gives the bits of the two-lattice sweep, from one lattice
+!>    into another and in place, whole or split in the three parts the time loop uses around the
+!>    halo exchange (rows 3..nyl-2 keeping their end rows, then 1..2 and nyl-1..nyl);
+!>  - in 4-byte storage the sweep is the 8-byte sweep of the stored values with only the result
+!>    rounded: shifted storage holds exactly f* - w_i rounded, unshifted exactly f* rounded, and
+!>    in place equals two lattices bitwise there too.
 program test_mrt
   use dkt_kinds, only: wp
   use dkt_check, only: check, finish
   use dkt_lattice, only: ex, ey, w, opp, moment_matrix, moment_norm, equilibrium
+  use dkt_kinds, only: sp
+  use dkt_store, only: lattice_t, lattice_allocate
   use dkt_mrt, only: collision_t, collision_init, collision_describe, stream_collide, &
-                     e3_heat_flux_rate
+                     e3_heat_flux_rate, sweep_t, sweep_init, sweep_rows
   implicit none
   integer, parameter :: nx = 7, nyl = 5, nxp = nx + 2
 
@@ -20,6 +28,12 @@ program test_mrt
   call test_mrt_equal_rates_is_bgk(.false.)
   call test_mrt_equal_rates_is_bgk(.true.)
   call test_opposites()
+  call test_row_sweep_bits(.false., .false.)
+  call test_row_sweep_bits(.false., .true.)
+  call test_row_sweep_bits(.true., .false.)
+  call test_row_sweep_bits(.true., .true.)
+  call test_single_storage(.true.)
+  call test_single_storage(.false.)
 
   call finish()
 
@@ -154,5 +168,114 @@ contains
     call check('MRT with all rates 1/tau equals BGK'// &
                merge(' with body force', '                ', forced), err < 1.0e-15_wp, err)
   end subroutine test_mrt_equal_rates_is_bgk
+
+  !> A collision with distinct MRT rates or BGK, with or without a body force.
+  subroutine some_collision(coll, bgk, forced)
+    type(collision_t), intent(out) :: coll
+    logical, intent(in) :: bgk, forced
+    real(wp) :: force(2), s(0:8)
+    force = 0.0_wp
+    if (forced) force = [2.0e-4_wp, -3.0e-4_wp]
+    s = [0.0_wp, 1.1_wp, 1.25_wp, 0.0_wp, e3_heat_flux_rate(1/0.7_wp), 0.0_wp, &
+         e3_heat_flux_rate(1/0.7_wp), 1/0.7_wp, 1/0.7_wp]
+    call collision_init(coll, s, bgk, force)
+  end subroutine some_collision
+
+  subroutine test_row_sweep_bits(bgk, forced)
+    logical, intent(in) :: bgk, forced
+    integer, parameter :: ny = 11
+    type(collision_t) :: coll
+    type(sweep_t) :: ws
+    type(lattice_t) :: a, b, c
+    real(wp) :: fin(0:nxp - 1, 0:ny + 1, 0:8), ref(0:nxp - 1, 0:ny + 1, 0:8)
+    character(len=:), allocatable :: what
+    call some_collision(coll, bgk, forced)
+    call random_rows(fin, ny)
+    ref = 0.0_wp
+    call stream_collide(coll, fin, ref, nxp, nx, ny, 1, ny)
+    call sweep_init(ws, nxp)
+    call lattice_allocate(a, nxp, ny, .false., .false.)
+    call lattice_allocate(b, nxp, ny, .false., .false.)
+    call lattice_allocate(c, nxp, ny, .false., .false.)
+  what = trim(merge('BGK', 'MRT', bgk))//trim(merge(' with body force', '                ', forced))
+    ! one lattice into another
+    a%d = fin
+    call sweep_rows(coll, ws, a, b, nx, ny, 1, ny)
+    call check('row sweep into a second lattice has the bits of the two-lattice sweep, '//what, &
+               all(b%d(1:nx, 1:ny, :) == ref(1:nx, 1:ny, :)), 0.0_wp)
+    ! in place, whole
+    a%d = fin
+    call sweep_rows(coll, ws, a, a, nx, ny, 1, ny)
+    call check('row sweep in place has the bits of the two-lattice sweep, '//what, &
+               all(a%d(1:nx, 1:ny, :) == ref(1:nx, 1:ny, :)), 0.0_wp)
+    ! in place, in the time loop's three parts (the halo rows arrive between the first and the
+    ! rest: they are corrupted until then, to show the first part does not read them)
+    c%d = fin
+    c%d(:, 0, :) = -1.0_wp
+    c%d(:, ny + 1, :) = -1.0_wp
+    call sweep_rows(coll, ws, c, c, nx, ny, 3, ny - 2, keep=.true.)
+    c%d(:, 0, :) = fin(:, 0, :)
+    c%d(:, ny + 1, :) = fin(:, ny + 1, :)
+    call sweep_rows(coll, ws, c, c, nx, ny, 1, 2, above_kept=.true.)
+    call sweep_rows(coll, ws, c, c, nx, ny, ny - 1, ny, below_kept=.true.)
+    call check('row sweep in place in three parts around the halo has the bits, '//what, &
+               all(c%d(1:nx, 1:ny, :) == ref(1:nx, 1:ny, :)), 0.0_wp)
+  end subroutine test_row_sweep_bits
+
+  subroutine test_single_storage(shifted)
+    logical, intent(in) :: shifted
+    integer, parameter :: ny = 9
+    type(collision_t) :: coll
+    type(sweep_t) :: ws
+    type(lattice_t) :: a, b
+    real(wp) :: fin(0:nxp - 1, 0:ny + 1, 0:8), ref(0:nxp - 1, 0:ny + 1, 0:8), shift(0:8)
+    real(sp) :: expect(1:nx, 1:ny, 0:8)
+    integer :: i
+    character(len=:), allocatable :: what
+    call some_collision(coll, .false., .true.)
+    call random_rows(fin, ny)
+    shift = 0.0_wp
+    if (shifted) shift = w
+    call sweep_init(ws, nxp)
+    call lattice_allocate(a, nxp, ny, .true., shifted)
+    call lattice_allocate(b, nxp, ny, .true., shifted)
+    ! the stored values, and the 8-byte lattice they stand for
+    do i = 0, 8
+      a%s(:, :, i) = real(fin(:, :, i) - shift(i), sp)
+      fin(:, :, i) = real(a%s(:, :, i), wp) + shift(i)
+    end do
+    ref = 0.0_wp
+    call stream_collide(coll, fin, ref, nxp, nx, ny, 1, ny)
+    do i = 0, 8
+      expect(:, :, i) = real(ref(1:nx, 1:ny, i) - shift(i), sp)
+    end do
+    what = trim(merge('shifted  ', 'unshifted', shifted))
+    call sweep_rows(coll, ws, a, b, nx, ny, 1, ny)
+    call check('4-byte '//what//' storage: the 8-byte sweep, only the result rounded', &
+               all(b%s(1:nx, 1:ny, :) == expect), 0.0_wp)
+    call sweep_rows(coll, ws, a, a, nx, ny, 3, ny - 2, keep=.true.)
+    call sweep_rows(coll, ws, a, a, nx, ny, 1, 2, above_kept=.true.)
+    call sweep_rows(coll, ws, a, a, nx, ny, ny - 1, ny, below_kept=.true.)
+    call check('4-byte '//what//' storage: in place in three parts equals two lattices', &
+               all(a%s(1:nx, 1:ny, :) == b%s(1:nx, 1:ny, :)), 0.0_wp)
+  end subroutine test_single_storage
+
+  !> A disturbed equilibrium on rows 1..ny, ghost columns and halo rows included.
+  subroutine random_rows(f, ny)
+    integer, intent(in) :: ny
+    real(wp), intent(out) :: f(0:nxp - 1, 0:ny + 1, 0:8)
+    integer :: x, j
+    real(wp) :: r(3)
+    f = 0.0_wp
+    do j = 0, ny + 1
+      do x = 0, nx + 1
+        call random_number(r)
+        f(x, j, :) = equilibrium(1.0_wp + 0.05_wp*(r(1) - 0.5_wp), 0.08_wp*(r(2) - 0.5_wp), &
+                                 0.08_wp*(r(3) - 0.5_wp))
+        call random_number(r)
+        f(x, j, 1:3) = f(x, j, 1:3)*(1.0_wp + 0.02_wp*(r - 0.5_wp))
+      end do
+    end do
+  end subroutine random_rows
 
 end program test_mrt
