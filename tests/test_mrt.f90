@@ -197,7 +197,8 @@ contains
     call lattice_allocate(a, nxp, ny, .false., .false.)
     call lattice_allocate(b, nxp, ny, .false., .false.)
     call lattice_allocate(c, nxp, ny, .false., .false.)
-  what = trim(merge('BGK', 'MRT', bgk))//trim(merge(' with body force', '                ', forced))
+    what = trim(merge('BGK', 'MRT', bgk))
+    if (forced) what = what//' with body force'
     ! one lattice into another
     a%d = fin
     call sweep_rows(coll, ws, a, b, nx, ny, 1, ny)
