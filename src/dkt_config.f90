@@ -44,6 +44,8 @@ module dkt_config
     real(wp) :: s_eps = 1.25_wp           !! MRT energy-square rate (E3)
     real(wp) :: s_q = 0.0_wp              !! MRT heat-flux rate; 0 = the E3 rule
     real(wp) :: cells_per_diameter = 0.0_wp !! > 0: dx from the smallest particle; 0 = use dx
+    !> 'in_place': one lattice, swept row by row; 'two_lattice': read one, write the other
+    character(len=12) :: streaming = 'in_place'
   end type lbm_cfg_t
 
   !> &inlet: a 'velocity' end of the channel.
@@ -275,6 +277,9 @@ contains
                   gt=0.5_wp, le=10.0_wp)
     call add_choice(reg, 'lbm', 'collision', c%lbm%collision, 'mrt bgk', &
                     'collision model: multiple-relaxation-time (E1) or BGK (E4)')
+    call add_choice(reg, 'lbm', 'streaming', c%lbm%streaming, 'in_place two_lattice', &
+                    'one lattice swept in place, or two (read one, write the other); '// &
+                    'the same results to the bit, in_place needs half the memory')
     call add_real(reg, 'lbm', 's_e', c%lbm%s_e, '-', 'MRT rate of the energy moment (E3)', &
                   gt=0.0_wp, lt=2.0_wp)
     call add_real(reg, 'lbm', 's_eps', c%lbm%s_eps, '-', &

@@ -5,7 +5,7 @@
 module dkt_run_state
   use dkt_kinds, only: wp
   use dkt_config, only: config_t, lattice_params_t
-  use dkt_mrt, only: collision_t
+  use dkt_mrt, only: collision_t, sweep_t
   use dkt_domain, only: domain_t
   use dkt_boundary, only: boundary_t
   use dkt_particles, only: particles_t
@@ -30,6 +30,8 @@ module dkt_run_state
     type(collision_t) :: coll
     real(wp), pointer, contiguous :: f(:, :, :) => null()      !! post-collision f*(t)
     real(wp), pointer, contiguous :: f_next(:, :, :) => null() !! f*(t + dt), written by the sweep
+    logical :: in_place = .false.   !! lbm.streaming = 'in_place': f_next is f
+    type(sweep_t) :: ws             !! the row buffers of the row-by-row sweep
     type(particles_t) :: parts      !! allocated only when the scene has particles
     logical :: particles_on = .false.
     logical :: particles_move = .false. !! some particle is free or prescribed

@@ -9,7 +9,8 @@ module dkt_simulation
   use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
                         largest_diameter
   use dkt_lattice, only: equilibrium
-  use dkt_mrt, only: collision_init, stream_collide
+  use dkt_mrt, only: collision_init, stream_collide, sweep_init, sweep_rows
+  use dkt_store, only: lattice_t
   use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
@@ -84,8 +85,14 @@ contains
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
     if (with_lattices) then
+      sim%in_place = cfg%lbm%streaming == 'in_place'
       allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
-      allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      if (sim%in_place) then
+        sim%f_next => sim%f
+      else
+        allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      end if
+      call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)
     end if
     ! the guards' advice names the knob that sets dx in this scene
@@ -283,14 +290,48 @@ contains
     associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call sweep_part(sim, 1)
       call halo_finish(sim%dom, sim%f)
       call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+      call sweep_part(sim, 2)
       call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     end associate
   end subroutine fluid_step
+
+  !> Stream and collide the rows that do not read the halo rows (part 1, while the halo
+  !! travels) or the rest (part 2, once it has arrived and the boundary links of the rows next to
+  !! the faces are bounced).
+  !!
+  !! Two lattices: part 1 is rows 2..nyl-1, part 2 rows 1 and nyl. In place, a row may be
+  !! overwritten only after the rows that pull from it have read it, and the bounce-back of the
+  !! links of rows 1 and nyl (after part 1) reads rows 0..2 and nyl-1..nyl+1 as they were: part 1
+  !! is rows 3..nyl-2, keeping its old end rows, which parts 2 (rows 1..2 and nyl-1..nyl) pull
+  !! from. A slab of fewer than 6 rows is swept whole in part 2. Every node sees the same
+  !! values in either scheme, so the two give the same bits (tests/test_mrt.f90).
+  subroutine sweep_part(sim, part)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: part
+    type(lattice_t) :: a, b
+    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+      a%d => sim%f
+      b%d => sim%f_next
+      if (.not. sim%in_place) then
+        if (part == 1) then
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+        else
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
+          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+        end if
+      else if (nyl < 6) then
+        if (part == 2) call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 1, nyl)
+      else if (part == 1) then
+        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 3, nyl - 2, keep=.true.)
+      else
+        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 1, 2, above_kept=.true.)
+        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, nyl - 1, nyl, below_kept=.true.)
+      end if
+    end associate
+  end subroutine sweep_part
 
   !> f_next (written by the sweep) becomes the current lattice f.
   subroutine swap_lattices(sim)
@@ -319,13 +360,12 @@ contains
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
       call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call sweep_part(sim, 1)
       call halo_finish(sim%dom, sim%f)
       call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
       call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
       call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+      call sweep_part(sim, 2)
     end associate
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     call particles_interior(sim%parts, sim%dom, sim%f_next)
@@ -447,7 +487,8 @@ contains
     if (sim%csv_open) close (sim%csv_unit)
     sim%csv_open = .false.
     call log_close()
-    if (associated(sim%f)) deallocate (sim%f, sim%f_next)
+    if (associated(sim%f) .and. .not. sim%in_place) deallocate (sim%f_next)
+    if (associated(sim%f)) deallocate (sim%f)
     call domain_free(sim%dom)
   end subroutine simulation_finish
 
