@@ -10,6 +10,7 @@ module dkt_memory
   use dkt_config, only: config_t, lattice_params_t, largest_diameter
   use dkt_domain, only: domain_t
   use dkt_registry, only: fmt_real
+  use dkt_store, only: lattice_bytes
   implicit none
   private
   public :: rank_memory, check_memory, fixed2, GIB, MIB
@@ -19,10 +20,11 @@ module dkt_memory
 contains
 
   !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
-  !! memory check: (1) the two lattices f and f_next, 9 doubles per padded node (nxp columns,
-  !! nyl rows and two halo rows); (2) the particles: per-row force sums (3 doubles per row and
-  !! particle) and the boundary links, at most 8 per surface node and about pi d + 8 surface
-  !! nodes per particle of d spacings (28 bytes a link); (3) the output: the field buffer of
+  !! memory check: (1) the two lattices f and f_next, 9 populations per padded node (nxp
+  !! columns, nyl rows and two halo rows) of 8 bytes, or 4 with lbm.precision = 'single';
+  !! (2) the particles: per-row force sums (3 doubles per row and particle) and the boundary
+  !! links, at most 8 per surface node and about pi d + 8 surface nodes per particle of d
+  !! spacings (28 bytes a link); (3) the output: the field buffer of
   !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
   pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
     type(config_t), intent(in) :: cfg
@@ -31,7 +33,8 @@ contains
     real(wp) :: bytes(3)
     real(wp) :: d_cells
     integer :: n
-    bytes(1) = 2.0_wp*9.0_wp*8.0_wp*real(nxp, wp)*real(nyl + 2, wp)
+    bytes(1) = 2.0_wp*9.0_wp*real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)* &
+               real(nyl + 2, wp)
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then

@@ -4,12 +4,14 @@
 !> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
 module dkt_simulation
   use mpi_f08, only: MPI_Comm
-  use dkt_kinds, only: wp, pi, cs2
+  use dkt_kinds, only: wp, sp, pi, cs2
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
   use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
                         largest_diameter
-  use dkt_lattice, only: equilibrium
-  use dkt_mrt, only: collision_init, stream_collide
+  use dkt_lattice, only: equilibrium, w
+  use dkt_mrt, only: collision_t, collision_init, stream_collide
+  use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
+                       lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
@@ -62,6 +64,7 @@ contains
     logical :: periodic_x, periodic_y
     integer :: min_rows
     real(wp) :: enter, release
+    logical :: single, shifted
 
     sim%cfg = cfg
     sim%lp = lp
@@ -84,8 +87,9 @@ contains
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
     if (with_lattices) then
-      allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
-      allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      call lattice_precision(cfg%lbm%precision, single, shifted)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
+      call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted)
       call initialise(sim)
     end if
     ! the guards' advice names the knob that sets dx in this scene
@@ -144,7 +148,7 @@ contains
       call log_line(trim(line))
     end if
     call particles_find_links(sim%parts, sim%dom)
-    if (associated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
+    if (lattice_allocated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
 
   !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
@@ -152,9 +156,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer :: x, j, jg
     real(wp) :: kx, ky, u0, xc, yc, ux, uy, p
-    ! first touch of every entry, ghosts and padding included, so no garbage is ever read
-    sim%f = 0.0_wp
-    sim%f_next = 0.0_wp
+    ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
     select case (trim(sim%cfg%initial%flow))
     case ('taylor_green')
       ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
@@ -169,13 +171,13 @@ contains
           ux = -u0*cos(kx*xc)*sin(ky*yc)
           uy = u0*sin(kx*xc)*cos(ky*yc)
           p = -0.25_wp*u0*u0*(cos(2.0_wp*kx*xc) + cos(2.0_wp*ky*yc))
-          sim%f(x, j, :) = equilibrium(1.0_wp + p/cs2, ux, uy)
+          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp + p/cs2, ux, uy))
         end do
       end do
     case default
       do j = 1, sim%dom%nyl
         do x = 1, sim%lp%nx
-          sim%f(x, j, :) = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
+          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp, 0.0_wp, 0.0_wp))
         end do
       end do
     end select
@@ -280,25 +282,64 @@ contains
   subroutine fluid_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+    associate (nyl => sim%dom%nyl)
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call sweep(sim, 2, nyl - 1)
       call halo_finish(sim%dom, sim%f)
       call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+      call sweep(sim, 1, 1)
+      call sweep(sim, nyl, nyl)
       call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     end associate
   end subroutine fluid_step
 
+  !> Pull-stream and collide rows j1..j2 of f into f_next (E1-E4), in either storage.
+  subroutine sweep(sim, j1, j2)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: j1, j2
+    if (sim%f%single) then
+      call sweep_single_standin(sim%coll, sim%f, sim%f_next, sim%dom%nxp, sim%dom%nx, j1, j2)
+    else
+      call stream_collide(sim%coll, sim%f%d, sim%f_next%d, sim%dom%nxp, sim%dom%nx, &
+                          sim%dom%nyl, j1, j2)
+    end if
+  end subroutine sweep
+
+  !> STAND-IN for the 4-byte sweep until dkt_mrt provides sweep_rows(coll, ws, src, dst, j1, j2)
+  !! on lattice_t; replace the call in `sweep` with it. For each row j: rows j-1..j+1 of src,
+  !! unshifted, into an 8-byte 3-row lattice, the 8-byte stream_collide of its middle row, and
+  !! that row stored back into dst (rounded to 4 bytes, shifted as dst stores). Slow (every
+  !! row converted three times), but the arithmetic of the collision is the double kernel's.
+  subroutine sweep_single_standin(coll, src, dst, nxp, nx, j1, j2)
+    type(collision_t), intent(in) :: coll
+    type(lattice_t), intent(in) :: src
+    type(lattice_t), intent(inout) :: dst
+    integer, intent(in) :: nxp, nx, j1, j2
+    real(wp), allocatable :: rows(:, :, :), out(:, :, :)
+    integer :: j, i
+    allocate (rows(0:nxp - 1, 0:2, 0:8), out(0:nxp - 1, 0:2, 0:8))
+    out = 0.0_wp
+    do j = j1, j2
+      do i = 0, 8
+        rows(:, :, i) = real(src%s(:, j - 1:j + 1, i), wp)
+        if (src%shifted) rows(:, :, i) = rows(:, :, i) + w(i)
+      end do
+      call stream_collide(coll, rows, out, nxp, nx, 1, 1, 1)
+      do i = 0, 8
+        if (dst%shifted) then
+          dst%s(1:nx, j, i) = real(out(1:nx, 1, i) - w(i), sp)
+        else
+          dst%s(1:nx, j, i) = real(out(1:nx, 1, i), sp)
+        end if
+      end do
+    end do
+  end subroutine sweep_single_standin
+
   !> f_next (written by the sweep) becomes the current lattice f.
   subroutine swap_lattices(sim)
     type(simulation_t), intent(inout) :: sim
-    real(wp), pointer, contiguous :: tmp(:, :, :)
-    tmp => sim%f
-    sim%f => sim%f_next
-    sim%f_next => tmp
+    call lattice_swap(sim%f, sim%f_next)
   end subroutine swap_lattices
 
   !> One step with particles, overlapped like fluid_step: while the crossing populations
@@ -315,17 +356,17 @@ contains
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
     failure = ''
-    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+    associate (nyl => sim%dom%nyl)
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
       call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+      call sweep(sim, 2, nyl - 1)
       call halo_finish(sim%dom, sim%f)
       call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
       call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
       call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-      call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+      call sweep(sim, 1, 1)
+      call sweep(sim, nyl, nyl)
     end associate
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     call particles_interior(sim%parts, sim%dom, sim%f_next)
@@ -447,7 +488,8 @@ contains
     if (sim%csv_open) close (sim%csv_unit)
     sim%csv_open = .false.
     call log_close()
-    if (associated(sim%f)) deallocate (sim%f, sim%f_next)
+    call lattice_free(sim%f)
+    call lattice_free(sim%f_next)
     call domain_free(sim%dom)
   end subroutine simulation_finish
 
