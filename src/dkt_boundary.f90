@@ -6,10 +6,15 @@
 !> Open ends are applied after the sweep to the end rows, on post-collision populations:
 !> setting f*(x_b) = f^eq(rho_b, u_b) + [f*(x_n) - f^eq(x_n)] is the same as applying E5
 !> before the collision and colliding with the same rates.
+!>
+!> Ghost values are copies between populations of equal weight (a bounce-back pair, a
+!> periodic image, the same population): they move the stored values as they are, in either
+!> storage (dkt_store). E5 is computed from the unshifted populations in 8 bytes.
 module dkt_boundary
   use dkt_kinds, only: wp, pi
   use dkt_lattice, only: ex, ey, opp, equilibrium
   use dkt_domain, only: domain_t
+  use dkt_store, only: lattice_t, lattice_get_node, lattice_set_node
   implicit none
   private
   public :: boundary_t, boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends, &
@@ -62,7 +67,7 @@ contains
   subroutine fill_local_ghosts(bc, dom, f)
     type(boundary_t), intent(in) :: bc
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer :: k, i, nx, nyl
     nx = dom%nx
     nyl = dom%nyl
@@ -72,9 +77,17 @@ contains
       ! the ghost at (0, j) is pulled by (1, j + ey): it holds f*_opp there (bounce-back)
       do k = 1, 3
         i = plus_x(k)
-        f(0, 1 - ey(i):nyl - ey(i), i) = f(1, 1:nyl, opp(i))
+        if (f%single) then
+          f%s(0, 1 - ey(i):nyl - ey(i), i) = f%s(1, 1:nyl, opp(i))
+        else
+          f%d(0, 1 - ey(i):nyl - ey(i), i) = f%d(1, 1:nyl, opp(i))
+        end if
         i = minus_x(k)
-        f(nx + 1, 1 - ey(i):nyl - ey(i), i) = f(nx, 1:nyl, opp(i))
+        if (f%single) then
+          f%s(nx + 1, 1 - ey(i):nyl - ey(i), i) = f%s(nx, 1:nyl, opp(i))
+        else
+          f%d(nx + 1, 1 - ey(i):nyl - ey(i), i) = f%d(nx, 1:nyl, opp(i))
+        end if
       end do
     end if
     if (dom%has_lower_end) call end_row(bc, bc%lower, f, nx, 0, 1, plus_y)
@@ -86,7 +99,7 @@ contains
   subroutine fill_halo_ghosts(bc, dom, f)
     type(boundary_t), intent(in) :: bc
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     if (.not. bc%periodic_x) return
     if (.not. (dom%has_lower_end .and. bc%lower == END_WALL)) &
       call periodic_columns(f, dom%nx, 0, 0)
@@ -96,12 +109,17 @@ contains
 
   !> Periodic images in the ghost columns for rows j1..j2.
   subroutine periodic_columns(f, nx, j1, j2)
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer, intent(in) :: nx, j1, j2
     integer :: k
     do k = 1, 3
-      f(0, j1:j2, plus_x(k)) = f(nx, j1:j2, plus_x(k))
-      f(nx + 1, j1:j2, minus_x(k)) = f(1, j1:j2, minus_x(k))
+      if (f%single) then
+        f%s(0, j1:j2, plus_x(k)) = f%s(nx, j1:j2, plus_x(k))
+        f%s(nx + 1, j1:j2, minus_x(k)) = f%s(1, j1:j2, minus_x(k))
+      else
+        f%d(0, j1:j2, plus_x(k)) = f%d(nx, j1:j2, plus_x(k))
+        f%d(nx + 1, j1:j2, minus_x(k)) = f%d(1, j1:j2, minus_x(k))
+      end if
     end do
   end subroutine periodic_columns
 
@@ -111,7 +129,7 @@ contains
   subroutine end_row(bc, kind, f, nx, jg, jb, pops)
     type(boundary_t), intent(in) :: bc
     integer, intent(in) :: kind, nx, jg, jb, pops(3)
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer :: k, i, xg, x
     do k = 1, 3
       i = pops(k)
@@ -119,10 +137,17 @@ contains
         do xg = 0, nx + 1
           x = xg + ex(i)
           if (bc%periodic_x) x = modulo(x - 1, nx) + 1
-          if (x >= 1 .and. x <= nx) f(xg, jg, i) = f(x, jb, opp(i))
+          if (x < 1 .or. x > nx) cycle
+          if (f%single) then
+            f%s(xg, jg, i) = f%s(x, jb, opp(i))
+          else
+            f%d(xg, jg, i) = f%d(x, jb, opp(i))
+          end if
         end do
+      else if (f%single) then
+        f%s(1:nx, jg, i) = f%s(1:nx, jb, i)
       else
-        f(1:nx, jg, i) = f(1:nx, jb, i)
+        f%d(1:nx, jg, i) = f%d(1:nx, jb, i)
       end if
     end do
   end subroutine end_row
@@ -131,7 +156,7 @@ contains
   subroutine apply_open_ends(bc, dom, f, n)
     type(boundary_t), intent(in) :: bc
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer, intent(in) :: n
     if (dom%has_lower_end .and. bc%lower >= END_VELOCITY) &
       call extrapolate_row(bc, bc%lower, f, dom%nx, 1, 2, n)
@@ -145,19 +170,19 @@ contains
   subroutine extrapolate_row(bc, kind, f, nx, jb, jn, n)
     type(boundary_t), intent(in) :: bc
     integer, intent(in) :: kind, nx, jb, jn, n
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     real(wp) :: fn(0:8), rho, ux, uy
     integer :: x
     do x = 1, nx
-      fn = f(x, jn, :)
+      fn = lattice_get_node(f, x, jn)
       rho = sum(fn)
       ux = sum(ex*fn)/rho
       uy = sum(ey*fn)/rho
       fn = fn - equilibrium(rho, ux, uy)
       if (kind == END_VELOCITY) then
-        f(x, jb, :) = equilibrium(rho, 0.0_wp, inlet_profile(bc, nx, x, n)) + fn
+        call lattice_set_node(f, x, jb, equilibrium(rho, 0.0_wp, inlet_profile(bc, nx, x, n)) + fn)
       else
-        f(x, jb, :) = equilibrium(1.0_wp, ux, uy) + fn
+        call lattice_set_node(f, x, jb, equilibrium(1.0_wp, ux, uy) + fn)
       end if
     end do
   end subroutine extrapolate_row

@@ -8,7 +8,11 @@
 !> - /state_real: dx, dt (to refuse a checkpoint of another lattice or time step);
 !> - /particles (h5py (n, 10)): x, y, u, v, omega, fx, fy, torque, cx, cy in lattice units;
 !> - /episodes (h5py (3, n_episodes)): start, end and smallest gap of the episodes so far;
-!> - /given: the input as read, as character codes, for the record.
+!> - /given: the input as read, as character codes, for the record;
+!> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
+!>   in 4 bytes), 2 'single_unshifted'; absent in checkpoints written before single storage
+!>   existed, which are 'double'. /f holds the stored values exactly (a 4-byte value converts
+!>   to 8 bytes and back without change), so a single-precision run resumes bit for bit too.
 !>
 !> A checkpoint is written to `<file>.tmp` and renamed when complete, so a failed write (disk
 !> full, directory gone) never damages the previous checkpoint. A checkpoint is read only after
@@ -19,7 +23,8 @@ module dkt_checkpoint
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank
   use hdf5, only: hsize_t
   use ieee_arithmetic, only: ieee_is_finite
-  use dkt_kinds, only: wp
+  use dkt_kinds, only: wp, sp
+  use dkt_store, only: lattice_t, lattice_precision_name
   use dkt_filesystem, only: rename_file
   use dkt_registry, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
@@ -28,7 +33,12 @@ module dkt_checkpoint
                     io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none
   private
-  public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE
+  public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &
+            STORAGE_NAMES
+
+  !> lbm.precision by its code in /precision (0, 1, 2)
+  character(len=16), parameter :: STORAGE_NAMES(0:2) = &
+                                  [character(len=16) :: 'double', 'single', 'single_unshifted']
 
   integer, parameter :: NSTATE = 10 !! values of one particle's state
   integer, parameter :: NINT = 9    !! entries of /state_int
@@ -44,6 +54,7 @@ module dkt_checkpoint
     real(wp), allocatable :: particles(:, :) !! (NSTATE, n)
     logical :: in_episode = .false.
     real(wp), allocatable :: t_start(:), t_end(:), gap_min(:) !! the episodes so far
+    integer :: precision = 0       !! how /f is stored: its index in STORAGE_NAMES
   end type checkpoint_t
 
 contains
@@ -64,7 +75,7 @@ contains
   subroutine checkpoint_write(path, comm, f, nx, nyl, y0, chk, given, err)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
-    real(wp), intent(in) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(in) :: f
     integer, intent(in) :: nx, nyl, y0
     type(checkpoint_t), intent(in) :: chk
     character(len=*), intent(in) :: given !! the input as read, for the record
@@ -84,7 +95,11 @@ contains
       return
     end if
     allocate (buf(nx, nyl, 0:8))
-    buf = f(1:nx, 1:nyl, 0:8)
+    if (f%single) then
+      buf = real(f%s(1:nx, 1:nyl, 0:8), wp)
+    else
+      buf = f%d(1:nx, 1:nyl, 0:8)
+    end if
     call io_put_real(pf, 'f', [integer(hsize_t) :: chk%nx, chk%ny, 9], &
                      [integer(hsize_t) :: 0, y0, 0], [integer(hsize_t) :: nx, nyl, 9], buf, .true.)
     call io_put_real(pf, 'state_real', [integer(hsize_t) :: 2], [integer(hsize_t) :: 0], &
@@ -108,6 +123,7 @@ contains
       codes(k) = ichar(given(k:k))
     end do
     call io_put_int(pf, 'given', codes)
+    call io_put_int(pf, 'precision', [storage_code(f)])
     call io_file_close(pf, err)
     if (len(err) > 0) then
       err = 'writing checkpoint file '''//tmp//''' failed ('//err//'); is the disk full?'
@@ -120,22 +136,23 @@ contains
     if (bad) err = 'cannot rename '''//tmp//''' to '''//path//''''
   end subroutine checkpoint_write
 
-  !> Read the checkpoint at `path`: its state into `chk` and, when its lattice is nx x ny and it
-  !! holds np particles, its particles and the rows y0+1..y0+nyl of its populations into rows
-  !! 1..nyl, columns 1..nx of f (the caller refuses a checkpoint of another lattice or particle
-  !! count, from chk%nx, ny, np). Every size and count is checked against the datasets' shapes
+  !> Read the checkpoint at `path`: its state into `chk` and, when its lattice is nx x ny, it
+  !! holds np particles and its populations are stored as f stores them, its particles and the
+  !! rows y0+1..y0+nyl of its populations into rows 1..nyl, columns 1..nx of f (the caller
+  !! refuses a checkpoint of another lattice, particle count or storage, from chk%nx, ny, np,
+  !! precision). Every size and count is checked against the datasets' shapes
   !! and sane bounds before it is used. err is '' on success, else the same message on every
   !! rank.
   subroutine checkpoint_read(path, comm, f, nx, ny, nyl, y0, np, chk, err)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer, intent(in) :: nx, ny, nyl, y0 !! this run's lattice and slab
     integer, intent(in) :: np              !! this run's particles
     type(checkpoint_t), intent(out) :: chk
     character(len=:), allocatable, intent(out) :: err
     type(io_file_t) :: pf
-    integer :: ints(NINT), ne, nd
+    integer :: ints(NINT), ne, nd, code(1)
     integer(hsize_t) :: dims(3)
     logical :: exists, any_bad, foreign
     real(wp) :: rr(2)
@@ -185,8 +202,23 @@ contains
     chk%dx = rr(1)
     chk%dt = rr(2)
     if (len(what) == 0) what = header_problem()
+    ! the storage of /f; a checkpoint without /precision was written in 8 bytes
+    chk%precision = 0
+    if (len(what) == 0) then
+      call io_dataset_dims(pf, 'precision', nd, dims)
+      if (nd == 1 .and. dims(1) == 1) then
+        call io_get_int(pf, 'precision', code)
+        chk%precision = code(1)
+        if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
+            chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
+                                                         ' (0, 1 or 2)'
+      else if (nd /= -1) then
+        what = 'a /precision that is not one integer'
+      end if
+    end if
     ! the populations and particles only when they are this run's; the caller says why not
-    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. chk%np == np) then
+    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. chk%np == np .and. &
+        chk%precision == storage_code(f)) then
       allocate (chk%particles(NSTATE, np), ep(ne, 3))
       if (np > 0) call io_get_real(pf, 'particles', [integer(hsize_t) :: 0, 0], &
                                    [integer(hsize_t) :: NSTATE, np], chk%particles)
@@ -198,7 +230,12 @@ contains
       allocate (buf(nx, nyl, 0:8))
       call io_get_real(pf, 'f', [integer(hsize_t) :: 0, y0, 0], &
                        [integer(hsize_t) :: nx, nyl, 9], buf)
-      f(1:nx, 1:nyl, 0:8) = buf
+      if (f%single) then
+        ! the values were 4-byte ones: the conversion back is exact
+        f%s(1:nx, 1:nyl, 0:8) = real(buf, sp)
+      else
+        f%d(1:nx, 1:nyl, 0:8) = buf
+      end if
       if (len(pf%failed) == 0) then
         if (.not. all(ieee_is_finite(chk%particles)) .or. .not. all(ieee_is_finite(ep))) &
           what = 'non-finite particle or episode values'
@@ -265,5 +302,14 @@ contains
     end function header_problem
 
   end subroutine checkpoint_read
+
+  !> The /precision code of the storage of f.
+  integer function storage_code(f) result(code)
+    type(lattice_t), intent(in) :: f
+    do code = lbound(STORAGE_NAMES, 1), ubound(STORAGE_NAMES, 1)
+      if (STORAGE_NAMES(code) == lattice_precision_name(f)) return
+    end do
+    code = 0
+  end function storage_code
 
 end module dkt_checkpoint

@@ -10,12 +10,13 @@ module dkt_checkpoint_policy
   use dkt_config, only: config_output_dir
   use dkt_particles, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
-                            NSTATE
+                            NSTATE, STORAGE_NAMES
   use dkt_signals, only: signals_install, signal_caught, SIGTERM
   use dkt_log, only: log_line
   use dkt_filesystem, only: remove_file, write_marker
   use dkt_registry, only: itoa
   use dkt_run_state, only: simulation_t, path_t
+  use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
   implicit none
   private
@@ -154,6 +155,14 @@ contains
         ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
         '--set options of the run that wrote it'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
+    end if
+    if (STORAGE_NAMES(chk%precision) /= lattice_precision_name(sim%f)) then
+      ! a 4-byte lattice cannot take 8-byte values exactly, nor a shifted one unshifted ones
+      call fatal_all(trim(sim%cfg%file)//': --restart '//path//': the checkpoint stores its '// &
+                     'populations with lbm.precision = '''//trim(STORAGE_NAMES(chk%precision))// &
+                     '''; the scene gives '''//lattice_precision_name(sim%f)//'''. Resume '// &
+                     'with the precision of the run that wrote it: --set lbm.precision='// &
+                     trim(STORAGE_NAMES(chk%precision)))
     end if
     if (chk%step > sim%lp%steps) then
       write (msg, '(a,i0,a,i0,a)') ': the checkpoint is at step ', chk%step, &

@@ -8,6 +8,7 @@ module dkt_config
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, cs2, pi
   use dkt_mrt, only: e3_heat_flux_rate
+  use dkt_store, only: PRECISION_NAMES
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
                           allowed_text, origin_of, blame, quoted, fmt_real, itoa
@@ -46,6 +47,9 @@ module dkt_config
     real(wp) :: cells_per_diameter = 0.0_wp !! > 0: dx from the smallest particle; 0 = use dx
     !> 'in_place': one lattice, swept row by row; 'two_lattice': read one, write the other
     character(len=12) :: streaming = 'in_place'
+    !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), or
+    !! 'single_unshifted' (f_i in 4 bytes; only to measure what the shift buys)
+    character(len=16) :: precision = 'double'
   end type lbm_cfg_t
 
   !> &inlet: a 'velocity' end of the channel.
@@ -291,6 +295,10 @@ contains
                   'lattice spacings across the smallest particle; > 0 sets dx = width/'// &
                   'nint(width n/D_min) in place of dx; 0 = use dx', ge=4.0_wp, le=1000.0_wp, &
                   zero_ok=.true.)
+    call add_choice(reg, 'lbm', 'precision', c%lbm%precision, PRECISION_NAMES, &
+                    'population storage: 8 bytes, or 4 bytes holding f_i - w_i (computed in 8 '// &
+                    'either way); single_unshifted stores f_i in 4 bytes, only to measure '// &
+                    'what the shift buys, not for use')
 
     call add_real(reg, 'inlet', 'velocity', c%inlet%velocity, 'cm/s', &
                   'signed y-velocity at a velocity end (centreline value if parabolic)')

@@ -15,6 +15,7 @@ module dkt_diagnostics
   use dkt_kinds, only: wp, mpi_wp, cs2
   use dkt_domain, only: domain_t
   use dkt_fields, only: node_moments
+  use dkt_store, only: lattice_t, lattice_get_node
   implicit none
   private
   public :: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, pair_diag_update, &
@@ -50,7 +51,7 @@ contains
   !! The caller stops the run, so that all ranks write their output and close it together.
   subroutine guard_check(dom, f, force, mach_limit, step, t, dx, y_offset, mach_max, failure)
     type(domain_t), intent(in) :: dom
-    real(wp), intent(in) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(in) :: f      !! the populations, checked unshifted in 8 bytes
     real(wp), intent(in) :: force(2)      !! body force, lattice units
     real(wp), intent(in) :: mach_limit    !! largest allowed |u|/c_s
     integer, intent(in) :: step           !! time step
@@ -59,7 +60,7 @@ contains
     real(wp), intent(out) :: mach_max     !! largest |u|/c_s on any rank
     character(len=:), allocatable, intent(out) :: failure
     integer, parameter :: OK = 0, TOO_FAST = 1, NON_FINITE = 2
-    real(wp) :: rho, ux, uy, ma
+    real(wp) :: rho, ux, uy, ma, fn(0:8)
     integer :: x, j, kind, worst, root
     character(len=512) :: msg
 
@@ -69,8 +70,9 @@ contains
     msg = ''
     scan: do j = 1, dom%nyl
       do x = 1, dom%nx
-        call node_moments(f(x, j, :), force, rho, ux, uy)
-        if (.not. (all(ieee_is_finite(f(x, j, :))) .and. ieee_is_finite(ux) .and. &
+        fn = lattice_get_node(f, x, j)
+        call node_moments(fn, force, rho, ux, uy)
+        if (.not. (all(ieee_is_finite(fn)) .and. ieee_is_finite(ux) .and. &
                    ieee_is_finite(uy))) then
           write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') 'non-finite value at step ', &
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &

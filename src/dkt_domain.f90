@@ -14,7 +14,8 @@ module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
                      MPI_STATUSES_IGNORE
-  use dkt_kinds, only: wp, i8, mpi_wp
+  use dkt_kinds, only: wp, sp, i8, mpi_wp
+  use dkt_store, only: lattice_t
   implicit none
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
@@ -137,17 +138,24 @@ contains
   !> Post the halo exchange of the post-collision populations that cross the slab faces:
   !! c_y = +1 from row nyl go up into the upper neighbour's row 0, c_y = -1 from row 1 go down
   !! into the lower neighbour's row nyl+1. Columns 1..nx only; ghost columns are set locally.
+  !! The stored values travel as they are: a 4-byte value in the 8-byte buffer converts exactly
+  !! both ways.
   subroutine halo_start(dom, f)
     type(domain_t), intent(inout) :: dom
-    real(wp), intent(in) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(in) :: f
     integer :: k, nx, n
     nx = dom%nx
     n = 3*nx
     call MPI_Irecv(dom%rbuf_up, n, mpi_wp, dom%below, TAG_UP, dom%comm, dom%req(1))
     call MPI_Irecv(dom%rbuf_dn, n, mpi_wp, dom%above, TAG_DOWN, dom%comm, dom%req(2))
     do k = 1, 3
-      dom%sbuf_up((k - 1)*nx + 1:k*nx) = f(1:nx, dom%nyl, up_pops(k))
-      dom%sbuf_dn((k - 1)*nx + 1:k*nx) = f(1:nx, 1, down_pops(k))
+      if (f%single) then
+        dom%sbuf_up((k - 1)*nx + 1:k*nx) = real(f%s(1:nx, dom%nyl, up_pops(k)), wp)
+        dom%sbuf_dn((k - 1)*nx + 1:k*nx) = real(f%s(1:nx, 1, down_pops(k)), wp)
+      else
+        dom%sbuf_up((k - 1)*nx + 1:k*nx) = f%d(1:nx, dom%nyl, up_pops(k))
+        dom%sbuf_dn((k - 1)*nx + 1:k*nx) = f%d(1:nx, 1, down_pops(k))
+      end if
     end do
     call MPI_Isend(dom%sbuf_up, n, mpi_wp, dom%above, TAG_UP, dom%comm, dom%req(3))
     call MPI_Isend(dom%sbuf_dn, n, mpi_wp, dom%below, TAG_DOWN, dom%comm, dom%req(4))
@@ -156,18 +164,26 @@ contains
   !> Complete the exchange started by halo_start and unpack into the halo rows.
   subroutine halo_finish(dom, f)
     type(domain_t), intent(inout) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer :: k, nx
     nx = dom%nx
     call MPI_Waitall(4, dom%req, MPI_STATUSES_IGNORE)
     if (dom%below /= MPI_PROC_NULL) then
       do k = 1, 3
-        f(1:nx, 0, up_pops(k)) = dom%rbuf_up((k - 1)*nx + 1:k*nx)
+        if (f%single) then
+          f%s(1:nx, 0, up_pops(k)) = real(dom%rbuf_up((k - 1)*nx + 1:k*nx), sp)
+        else
+          f%d(1:nx, 0, up_pops(k)) = dom%rbuf_up((k - 1)*nx + 1:k*nx)
+        end if
       end do
     end if
     if (dom%above /= MPI_PROC_NULL) then
       do k = 1, 3
-        f(1:nx, dom%nyl + 1, down_pops(k)) = dom%rbuf_dn((k - 1)*nx + 1:k*nx)
+        if (f%single) then
+          f%s(1:nx, dom%nyl + 1, down_pops(k)) = real(dom%rbuf_dn((k - 1)*nx + 1:k*nx), sp)
+        else
+          f%d(1:nx, dom%nyl + 1, down_pops(k)) = dom%rbuf_dn((k - 1)*nx + 1:k*nx)
+        end if
       end do
     end if
   end subroutine halo_finish

@@ -4,6 +4,7 @@ module dkt_fields
   use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_PROC_NULL
   use dkt_kinds, only: wp, mpi_wp
   use dkt_domain, only: domain_t
+  use dkt_store, only: lattice_t, lattice_get_node
   implicit none
   private
   public :: node_moments, macroscopic, vorticity
@@ -21,16 +22,17 @@ contains
     uy = (fn(2) - fn(4) + fn(5) + fn(6) - fn(7) - fn(8) - 0.5_wp*force(2))/rho
   end subroutine node_moments
 
-  !> rho, ux, uy (lattice units) on rows 1..nyl of the slab.
+  !> rho, ux, uy (lattice units) on rows 1..nyl of the slab, from the unshifted 8-byte
+  !! populations whatever lbm.precision stores.
   subroutine macroscopic(dom, f, force, rho, ux, uy)
     type(domain_t), intent(in) :: dom
-    real(wp), intent(in) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(in) :: f
     real(wp), intent(in) :: force(2)
     real(wp), intent(out) :: rho(:, :), ux(:, :), uy(:, :)
     integer :: x, j
     do j = 1, dom%nyl
       do x = 1, dom%nx
-        call node_moments(f(x, j, :), force, rho(x, j), ux(x, j), uy(x, j))
+        call node_moments(lattice_get_node(f, x, j), force, rho(x, j), ux(x, j), uy(x, j))
       end do
     end do
   end subroutine macroscopic

@@ -10,19 +10,27 @@ module dkt_memory
   use dkt_config, only: config_t, lattice_params_t, largest_diameter
   use dkt_domain, only: domain_t
   use dkt_registry, only: fmt_real
+  use dkt_store, only: lattice_bytes
   implicit none
   private
   public :: rank_memory, check_memory, fixed2, GIB, MIB
 
   real(wp), parameter :: GIB = 2.0_wp**30, MIB = 2.0_wp**20
 
+  !> doubles per column in the row buffers of the sweep (dkt_mrt sweep_t: below, saved, o13,
+  !! kept_dn, kept_up in either storage, and the room for a row)
+  real(wp), parameter :: SWEEP_ROW_DOUBLES = 3.0_wp + 3.0_wp + 2.0_wp + 3.0_wp + 9.0_wp + 4.5_wp + &
+                         9.0_wp + 4.5_wp
+
 contains
 
   !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
-  !! memory check: (1) the two lattices f and f_next, 9 doubles per padded node (nxp columns,
-  !! nyl rows and two halo rows); (2) the particles: per-row force sums (3 doubles per row and
-  !! particle) and the boundary links, at most 8 per surface node and about pi d + 8 surface
-  !! nodes per particle of d spacings (28 bytes a link); (3) the output: the field buffer of
+  !! memory check: (1) the lattice (one with lbm.streaming = 'in_place', two otherwise), 9
+  !! populations per padded node (nxp columns, nyl rows and two halo rows) of 8 bytes, or 4 with
+  !! lbm.precision = 'single', and the in-place sweep's row buffers (18 doubles per column);
+  !! (2) the particles: per-row force sums (3 doubles per row and particle) and the boundary
+  !! links, at most 8 per surface node and about pi d + 8 surface nodes per particle of d
+  !! spacings (28 bytes a link); (3) the output: the field buffer of
   !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
   pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
     type(config_t), intent(in) :: cfg
@@ -31,7 +39,9 @@ contains
     real(wp) :: bytes(3)
     real(wp) :: d_cells
     integer :: n
-    bytes(1) = 2.0_wp*9.0_wp*8.0_wp*real(nxp, wp)*real(nyl + 2, wp)
+    bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming == 'in_place')*9.0_wp* &
+               real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)*real(nyl + 2, wp) + &
+               SWEEP_ROW_DOUBLES*8.0_wp*real(nxp, wp)
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then

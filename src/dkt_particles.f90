@@ -14,11 +14,16 @@
 !> Interior nodes are not fluid: after each sweep they hold the equilibrium at the local
 !> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the
 !> wall velocity and the mean density of its fluid neighbours.
+!>
+!> Every population these routines read or write goes through its unshifted 8-byte value
+!> (dkt_store), whatever lbm.precision stores: bounce-back with a moving wall, the equilibria
+!> and the density sums are point-wise physics, computed in 8 bytes.
 module dkt_particles
   use mpi_f08, only: MPI_Gatherv, MPI_Allgatherv, MPI_Bcast
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_rows_for
+  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
   use dkt_collisions, only: collision_forces
   implicit none
   private
@@ -233,7 +238,7 @@ contains
   subroutine particles_bounce(ps, dom, f, j1, j2)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
     integer :: l, k, i, j, d, db
     real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
@@ -252,12 +257,12 @@ contains
         xw = i - 0.5_wp + q*ex(d)
         yw = dom%y0 + j - 0.5_wp + q*ey(d)
         call surface_velocity(p, xw, yw, uwx, uwy)
-        rho = sum(f(i, j, :))
+        rho = sum(lattice_get_node(f, i, j))
         wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
-        fi = f(i, j, d)
-        fib = f(i, j, db)
+        fi = lattice_get(f, i, j, d)
+        fib = lattice_get(f, i, j, db)
         fff = 0.0_wp
-        if (ps%lff(l)) fff = f(i - ex(d), j - ey(d), d)
+        if (ps%lff(l)) fff = lattice_get(f, i - ex(d), j - ey(d), d)
         select case (ps%scheme)
         case (BB_YU)
           if (ps%lff(l)) then
@@ -278,7 +283,7 @@ contains
         case default
           fb = fi + wall
         end select
-        f(i + ex(d), j + ey(d), db) = fb
+        call lattice_set(f, i + ex(d), j + ey(d), db, fb)
         ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the Galilean-invariant
         ! form replaces e by e - u_w
         fx = ex(d)*(fi + fb)
@@ -351,7 +356,7 @@ contains
   subroutine particles_interior(ps, dom, f)
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer :: k, i, j, jg, i1, i2, j1, j2
     real(wp) :: px, py, ux, uy
     do k = 1, ps%n
@@ -364,7 +369,7 @@ contains
             py = jg - 0.5_wp
             if (.not. inside(p, px, py)) cycle
             call surface_velocity(p, px, py, ux, uy)
-            f(i, j, :) = equilibrium(1.0_wp, ux, uy)
+            call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
           end do
         end do
       end associate
@@ -382,7 +387,7 @@ contains
   subroutine particles_move(ps, dom, f, walls_y, moving)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     type(particle_t), allocatable :: old(:)
@@ -439,7 +444,7 @@ contains
     type(particles_t), intent(in) :: ps
     type(particle_t), intent(in) :: old(:)
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     integer :: k, i, j, jg, d, nf, i1, i2, j1, j2
     real(wp) :: px, py, rho, ux, uy
     do k = 1, ps%n
@@ -459,7 +464,7 @@ contains
             do d = 1, 3, 2
               if (inside(o, px + ex(d), py)) cycle
               if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
-              rho = rho + sum(f(i + ex(d), j, :))
+              rho = rho + sum(lattice_get_node(f, i + ex(d), j))
               nf = nf + 1
             end do
             if (nf > 0) then
@@ -468,7 +473,7 @@ contains
               rho = 1.0_wp
             end if
             call surface_velocity(p, px, py, ux, uy)
-            f(i, j, :) = equilibrium(rho, ux, uy)
+            call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
           end do
         end do
       end associate

@@ -8,6 +8,8 @@ module dkt_report
   use dkt_mrt, only: collision_describe
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
+  use dkt_store, only: lattice_bytes
+  use dkt_registry, only: itoa
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
   implicit none
@@ -76,7 +78,9 @@ contains
         write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
       end if
-      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB, particle arrays '// &
+      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB (populations stored in '// &
+             itoa(lattice_bytes(cfg%lbm%precision))//' bytes, lbm.precision = '// &
+             trim(cfg%lbm%precision)//'), particle arrays '// &
              fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
              trim(particles)//'; '//trim(window)
       call log_line(trim(line))

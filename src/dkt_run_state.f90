@@ -3,7 +3,6 @@
 !> particles, the window, the pair's diagnostics, the open output and what ended the run.
 !> A separate module so that each service can act on the run without the loop's module.
 module dkt_run_state
-  use dkt_kinds, only: wp
   use dkt_config, only: config_t, lattice_params_t
   use dkt_mrt, only: collision_t, sweep_t
   use dkt_domain, only: domain_t
@@ -12,6 +11,7 @@ module dkt_run_state
   use dkt_window, only: window_t
   use dkt_diagnostics, only: pair_diag_t
   use dkt_io, only: io_t
+  use dkt_store, only: lattice_t
   implicit none
   private
   public :: simulation_t, path_t
@@ -28,10 +28,10 @@ module dkt_run_state
     type(domain_t) :: dom
     type(boundary_t) :: bc
     type(collision_t) :: coll
-    real(wp), pointer, contiguous :: f(:, :, :) => null()      !! post-collision f*(t)
-    real(wp), pointer, contiguous :: f_next(:, :, :) => null() !! f*(t + dt), written by the sweep
-    logical :: in_place = .false.   !! lbm.streaming = 'in_place': f_next is f
-    type(sweep_t) :: ws             !! the row buffers of the row-by-row sweep
+    type(lattice_t) :: f      !! post-collision f*(t), stored as lbm.precision says
+    type(lattice_t) :: f_next !! f*(t + dt), written by the sweep
+    logical :: in_place = .false.   !! lbm.streaming = 'in_place': f_next is f itself
+    type(sweep_t) :: ws             !! the row buffers of the in-place sweep
     type(particles_t) :: parts      !! allocated only when the scene has particles
     logical :: particles_on = .false.
     logical :: particles_move = .false. !! some particle is free or prescribed

@@ -4,13 +4,14 @@
 !> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
 module dkt_simulation
   use mpi_f08, only: MPI_Comm
-  use dkt_kinds, only: wp, pi, cs2
+  use dkt_kinds, only: wp, sp, pi, cs2
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
   use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
                         largest_diameter
   use dkt_lattice, only: equilibrium
-  use dkt_mrt, only: collision_init, stream_collide, sweep_init, sweep_rows
-  use dkt_store, only: lattice_t
+  use dkt_mrt, only: collision_init, sweep_init, sweep_rows
+  use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
+                       lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
@@ -63,6 +64,7 @@ contains
     logical :: periodic_x, periodic_y
     integer :: min_rows
     real(wp) :: enter, release
+    logical :: single, shifted
 
     sim%cfg = cfg
     sim%lp = lp
@@ -85,12 +87,13 @@ contains
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
     if (with_lattices) then
+      call lattice_precision(cfg%lbm%precision, single, shifted)
       sim%in_place = cfg%lbm%streaming == 'in_place'
-      allocate (sim%f(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
       if (sim%in_place) then
-        sim%f_next => sim%f
+        sim%f_next = sim%f
       else
-        allocate (sim%f_next(0:sim%dom%nxp - 1, 0:sim%dom%nyl + 1, 0:8))
+        call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted)
       end if
       call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)
@@ -151,7 +154,7 @@ contains
       call log_line(trim(line))
     end if
     call particles_find_links(sim%parts, sim%dom)
-    if (associated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
+    if (lattice_allocated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
 
   !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
@@ -159,9 +162,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer :: x, j, jg
     real(wp) :: kx, ky, u0, xc, yc, ux, uy, p
-    ! first touch of every entry, ghosts and padding included, so no garbage is ever read
-    sim%f = 0.0_wp
-    sim%f_next = 0.0_wp
+    ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
     select case (trim(sim%cfg%initial%flow))
     case ('taylor_green')
       ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
@@ -176,13 +177,13 @@ contains
           ux = -u0*cos(kx*xc)*sin(ky*yc)
           uy = u0*sin(kx*xc)*cos(ky*yc)
           p = -0.25_wp*u0*u0*(cos(2.0_wp*kx*xc) + cos(2.0_wp*ky*yc))
-          sim%f(x, j, :) = equilibrium(1.0_wp + p/cs2, ux, uy)
+          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp + p/cs2, ux, uy))
         end do
       end do
     case default
       do j = 1, sim%dom%nyl
         do x = 1, sim%lp%nx
-          sim%f(x, j, :) = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
+          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp, 0.0_wp, 0.0_wp))
         end do
       end do
     end select
@@ -287,7 +288,7 @@ contains
   subroutine fluid_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+    associate (nyl => sim%dom%nyl)
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
       call sweep_part(sim, 1)
@@ -311,24 +312,22 @@ contains
   subroutine sweep_part(sim, part)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: part
-    type(lattice_t) :: a, b
-    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
-      a%d => sim%f
-      b%d => sim%f_next
+    associate (nx => sim%dom%nx, nyl => sim%dom%nyl, c => sim%coll, ws => sim%ws, &
+               f => sim%f, g => sim%f_next)
       if (.not. sim%in_place) then
         if (part == 1) then
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 2, nyl - 1)
+          call sweep_rows(c, ws, f, g, nx, nyl, 2, nyl - 1)
         else
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, 1, 1)
-          call stream_collide(sim%coll, sim%f, sim%f_next, nxp, nx, nyl, nyl, nyl)
+          call sweep_rows(c, ws, f, g, nx, nyl, 1, 1)
+          call sweep_rows(c, ws, f, g, nx, nyl, nyl, nyl)
         end if
       else if (nyl < 6) then
-        if (part == 2) call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 1, nyl)
+        if (part == 2) call sweep_rows(c, ws, f, f, nx, nyl, 1, nyl)
       else if (part == 1) then
-        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 3, nyl - 2, keep=.true.)
+        call sweep_rows(c, ws, f, f, nx, nyl, 3, nyl - 2, keep=.true.)
       else
-        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, 1, 2, above_kept=.true.)
-        call sweep_rows(sim%coll, sim%ws, a, a, nx, nyl, nyl - 1, nyl, below_kept=.true.)
+        call sweep_rows(c, ws, f, f, nx, nyl, 1, 2, above_kept=.true.)
+        call sweep_rows(c, ws, f, f, nx, nyl, nyl - 1, nyl, below_kept=.true.)
       end if
     end associate
   end subroutine sweep_part
@@ -336,10 +335,7 @@ contains
   !> f_next (written by the sweep) becomes the current lattice f.
   subroutine swap_lattices(sim)
     type(simulation_t), intent(inout) :: sim
-    real(wp), pointer, contiguous :: tmp(:, :, :)
-    tmp => sim%f
-    sim%f => sim%f_next
-    sim%f_next => tmp
+    call lattice_swap(sim%f, sim%f_next)
   end subroutine swap_lattices
 
   !> One step with particles, overlapped like fluid_step: while the crossing populations
@@ -356,7 +352,7 @@ contains
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
     failure = ''
-    associate (nxp => sim%dom%nxp, nx => sim%dom%nx, nyl => sim%dom%nyl)
+    associate (nyl => sim%dom%nyl)
       call halo_start(sim%dom, sim%f)
       call fill_local_ghosts(sim%bc, sim%dom, sim%f)
       call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
@@ -487,8 +483,9 @@ contains
     if (sim%csv_open) close (sim%csv_unit)
     sim%csv_open = .false.
     call log_close()
-    if (associated(sim%f) .and. .not. sim%in_place) deallocate (sim%f_next)
-    if (associated(sim%f)) deallocate (sim%f)
+    call lattice_free(sim%f)
+    if (.not. sim%in_place) call lattice_free(sim%f_next)
+    nullify (sim%f_next%d, sim%f_next%s)
     call domain_free(sim%dom)
   end subroutine simulation_finish
 

@@ -13,7 +13,12 @@ module dkt_store
   implicit none
   private
   public :: lattice_t, lattice_allocate, lattice_free, lattice_get, lattice_set, &
-            lattice_get_node, lattice_set_node
+            lattice_get_node, lattice_set_node, lattice_swap, lattice_allocated, &
+            lattice_bytes, lattice_precision, lattice_precision_name, PRECISION_NAMES
+
+  !> the values of lbm.precision: 8 bytes; 4 bytes holding f_i - w_i; 4 bytes holding f_i (the
+  !! naive form, only there to measure what the shift buys)
+  character(len=*), parameter :: PRECISION_NAMES = 'double single single_unshifted'
 
   type :: lattice_t
     logical :: single = .false.  !! populations stored in 4 bytes (s), otherwise in 8 (d)
@@ -45,6 +50,49 @@ contains
       end do
     end if
   end subroutine lattice_allocate
+
+  !> The storage lbm.precision asks for: single (4 bytes) and shifted (f_i - w_i stored).
+  pure subroutine lattice_precision(name, single, shifted)
+    character(len=*), intent(in) :: name !! 'double', 'single' or 'single_unshifted'
+    logical, intent(out) :: single, shifted
+    single = name == 'single' .or. name == 'single_unshifted'
+    shifted = name == 'single'
+  end subroutine lattice_precision
+
+  !> The lbm.precision value that gives the storage of lat.
+  pure function lattice_precision_name(lat) result(name)
+    type(lattice_t), intent(in) :: lat
+    character(len=:), allocatable :: name
+    if (.not. lat%single) then
+      name = 'double'
+    else if (lat%shifted) then
+      name = 'single'
+    else
+      name = 'single_unshifted'
+    end if
+  end function lattice_precision_name
+
+  !> Bytes of one stored population: 8 for 'double', 4 for the single forms.
+  pure integer function lattice_bytes(name) result(b)
+    character(len=*), intent(in) :: name !! lbm.precision
+    logical :: single, shifted
+    call lattice_precision(name, single, shifted)
+    b = merge(storage_size(1.0_sp), storage_size(1.0_wp), single)/8
+  end function lattice_bytes
+
+  pure logical function lattice_allocated(lat)
+    type(lattice_t), intent(in) :: lat
+    lattice_allocated = associated(lat%d) .or. associated(lat%s)
+  end function lattice_allocated
+
+  !> Exchange two lattices (f and f_next after a step): only the pointers move.
+  subroutine lattice_swap(a, b)
+    type(lattice_t), intent(inout) :: a, b
+    type(lattice_t) :: tmp
+    tmp = a
+    a = b
+    b = tmp
+  end subroutine lattice_swap
 
   subroutine lattice_free(lat)
     type(lattice_t), intent(inout) :: lat

@@ -11,9 +11,10 @@
 !> window run has the same bits on any number of ranks.
 module dkt_window
   use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE
-  use dkt_kinds, only: wp, mpi_wp
+  use dkt_kinds, only: wp, sp, mpi_wp
   use dkt_lattice, only: equilibrium
   use dkt_domain, only: domain_t
+  use dkt_store, only: lattice_t, lattice_set_node
   use dkt_particles, only: particles_t, MOTION_FREE
   implicit none
   private
@@ -54,7 +55,7 @@ contains
     type(window_t), intent(inout) :: win
     type(domain_t), intent(in) :: dom
     type(particles_t), intent(inout) :: ps
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     real(wp) :: lowest
     integer :: k
     do
@@ -86,29 +87,40 @@ contains
   !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of
   !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest. The message
   !! holds columns 0..nx+1 of the nine populations, a size both sides compute from nx: the
-  !! padding beyond nx+1 is never sent.
+  !! padding beyond nx+1 is never sent. The stored values move as they are (4-byte values
+  !! travel exactly in the 8-byte buffer); the entering row is set from its 8-byte equilibrium.
   subroutine shift_rows(dom, f)
     type(domain_t), intent(in) :: dom
-    real(wp), intent(inout) :: f(0:, 0:, 0:)
+    type(lattice_t), intent(inout) :: f
     real(wp), allocatable :: sbuf(:, :), rbuf(:, :)
     real(wp) :: feq(0:8)
     integer :: j, i, nyl, last
     nyl = dom%nyl
     last = dom%nx + 1
     allocate (sbuf(0:last, 0:8), rbuf(0:last, 0:8))
-    sbuf = f(0:last, nyl, :)
+    if (f%single) then
+      sbuf = real(f%s(0:last, nyl, :), wp)
+    else
+      sbuf = f%d(0:last, nyl, :)
+    end if
     call MPI_Sendrecv(sbuf, size(sbuf), mpi_wp, dom%above, TAG_SHIFT, rbuf, size(rbuf), mpi_wp, &
                       dom%below, TAG_SHIFT, dom%comm, MPI_STATUS_IGNORE)
     do j = nyl, 2, -1
-      f(0:last, j, :) = f(0:last, j - 1, :)
+      if (f%single) then
+        f%s(0:last, j, :) = f%s(0:last, j - 1, :)
+      else
+        f%d(0:last, j, :) = f%d(0:last, j - 1, :)
+      end if
     end do
     if (dom%has_lower_end) then
       feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
       do i = 0, last
-        f(i, 1, :) = feq
+        call lattice_set_node(f, i, 1, feq)
       end do
+    else if (f%single) then
+      f%s(0:last, 1, :) = real(rbuf, sp)
     else
-      f(0:last, 1, :) = rbuf
+      f%d(0:last, 1, :) = rbuf
     end if
   end subroutine shift_rows
 

@@ -3,6 +3,8 @@
 dkt_add_fortran_test(NAME test_mrt SOURCES dkt_check.f90 test_mrt.f90 LABELS unit NO_MPIEXEC)
 dkt_add_pytest(NAME analytic_flows FILE tests/test_flows.py LABELS regression PROCESSORS 2
   TIMEOUT 600)
+# lbm.precision: 4-byte storage against the analytic flows, the naive form, the memory count
+dkt_add_pytest(NAME precision FILE tests/test_precision.py LABELS regression TIMEOUT 300)
 dkt_add_pytest(NAME decomposition_bitwise FILE tests/test_decomposition.py LABELS mpi
   PROCESSORS 3 TIMEOUT 600)
 if(DKTLBM_SANITIZE)

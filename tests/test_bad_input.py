@@ -155,6 +155,23 @@ CASES = {
         args=["--set", "lbm.collision=xyz"],
         pieces=["{file}", "--set lbm.collision=xyz", "&lbm", "collision", "'xyz'", "'mrt'"],
     ),
+    "precision-not-in-list": Case(
+        "tau = 1.0",
+        "tau = 1.0, precision = 'half'",
+        pieces=[
+            "{file}:{line}:",
+            "&lbm",
+            "precision",
+            "'half'",
+            "'double'",
+            "'single'",
+            "'single_unshifted'",
+        ],
+    ),
+    "precision-not-in-list-by-set": Case(
+        args=["--set", "lbm.precision=float"],
+        pieces=["{file}", "--set lbm.precision=float", "&lbm", "precision", "'float'", "'single'"],
+    ),
     # a valid file made invalid by an option: the message names the option, not a file line
     "range-by-set": Case(
         args=["--set", "lbm.tau=0.3"],

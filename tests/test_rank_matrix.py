@@ -5,7 +5,8 @@ Each case is a short run of a small scene, chosen so that together the cases cov
 - row counts that split evenly, unevenly and that are prime, and odd and even nx;
 - 1, 2, 3 and 4 ranks (oversubscribed on a 2-core machine);
 - particles whose centres cross a slab face while the window shifts, and in a box;
-- open ends (velocity and outflow, E5), closed ends (walls) and periodic ends.
+- open ends (velocity and outflow, E5), closed ends (walls) and periodic ends;
+- populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single').
 
 For every case and every rank count, every dataset under /particles, /diagnostics and /fields
 (fields written several times during the run) must be bitwise equal to the 1-rank run, and the
@@ -136,6 +137,17 @@ CASES: dict[str, dict] = {
     },
 }
 
+# lbm.precision = 'single' (4-byte populations holding f_i - w_i): the same cases, a window
+# with uneven rows and a closed box with a disk across a slab face. Every path that moves
+# stored values between slabs (halo rows, the window's row shift) or reads them point-wise
+# (bounce-back, E5, refill) has its own 4-byte branch, which these cases put on 1-4 ranks.
+for _case in ("window_uneven_rows_3", "closed_box_crossing"):
+    CASES[f"{_case}_single"] = {
+        **CASES[_case],
+        "sets": CASES[_case]["sets"] + ["lbm.precision=single"],
+        "double_twin": _case,
+    }
+
 
 def rows_for(ny: int, n: int) -> list[int]:
     """Rows of each rank, as the program splits them (lower ranks take the extra rows)."""
@@ -216,6 +228,11 @@ def test_case_hits_the_split_it_claims(runs: Runs, case: str) -> None:
         assert (offset[-1] != offset[0]) == spec["window"], f"{case}: window shifts {offset}"
     else:
         assert not spec["window"]
+    # a 4-byte case really stored 4 bytes: its fields are not its 8-byte twin's bits
+    if "double_twin" in spec:
+        twin, _, _ = runs.get(spec["double_twin"], 1)
+        last = sorted(k for k in data if k.startswith("fields/") and k.endswith("/ux"))[-1]
+        assert data[last].tobytes() != twin[last].tobytes(), f"{case}: {last} is the 8-byte run's"
     # a centre crossed a slab face: its row (1-based, in the window) was on both sides of it
     for n in spec["crosses"]:
         dx = float(runattrs["dx"])

@@ -94,6 +94,29 @@ def test_half_a_run_then_a_restart_equals_the_whole_run(
     assert_same_output(uninterrupted, out)
 
 
+def test_a_single_precision_run_restarts_bit_for_bit(tmp_path: Path) -> None:
+    """lbm.precision = 'single': the checkpoint holds the 4-byte stored values exactly (every
+    value of /f is a float32, /precision says 1 = 'single') and a run resumed from it on 3
+    ranks ends bitwise equal to the run that never stopped. Fails if the checkpoint rounds the
+    stored values, unshifts them, or stores 8-byte values the 4-byte lattice cannot hold."""
+    steps = STEPS // 2
+    sets = [*SETS, f"run.steps={steps}", "lbm.precision=single"]
+    reference = tmp_path / "reference"
+    run("case0.nml", 2, sets, reference, timeout=600)
+    out = tmp_path / "run"
+    half = steps // 2
+    run("case0.nml", 2, [*sets, f"run.steps={half}", f"run.checkpoint_every={half}"], out)
+    checkpoint = out / f"case0_chk_{half:09d}.h5"
+    with h5py.File(checkpoint, "r") as h5:
+        assert h5["precision"][()].tolist() == [1]
+        f = h5["f"][()]
+    assert np.array_equal(f, f.astype(np.float32).astype(f.dtype))
+    # stored as f_i - w_i: the rest population (w_0 = 4/9) is near 0, not near 4/9
+    assert np.abs(f[0]).max() < 0.1
+    run("case0.nml", 3, sets, out, extra=["--restart", str(checkpoint)])
+    assert_same_output(reference, out)
+
+
 def test_sigterm_checkpoints_exits_zero_and_the_resumed_run_matches(tmp_path: Path) -> None:
     """SIGTERM to the ranks (what a batch system sends before the time limit) mid-run: the run
     writes a checkpoint within two steps (at a step boundary), says how to resume, exits 0 and
@@ -161,9 +184,9 @@ def test_a_failed_checkpoint_write_stops_cleanly_and_keeps_the_previous_one(
 
 
 def test_a_bad_restart_file_is_refused_with_a_clear_message(tmp_path: Path) -> None:
-    """A missing file, a file that is not a checkpoint, and a checkpoint of another lattice
-    each stop every rank with one message naming the file, a non-zero status, and leave the
-    output as it was."""
+    """A missing file, a file that is not a checkpoint, a checkpoint of another lattice and
+    one of another lbm.precision each stop every rank with one message naming the file, a
+    non-zero status, and leave the output as it was."""
     out = tmp_path / "run"
     run("case0.nml", 2, [*SETS, "run.steps=100", "run.checkpoint_every=100"], out)
     before = (out / "case0.h5").read_bytes()
@@ -188,4 +211,9 @@ def test_a_bad_restart_file_is_refused_with_a_clear_message(tmp_path: Path) -> N
     proc = resume(str(out / "case0_chk_000000100.h5"), "lbm.cells_per_diameter=12")
     assert proc.returncode != 0
     assert "the checkpoint holds a lattice of" in proc.stderr, proc.stderr
+    # an 8-byte checkpoint into a 4-byte lattice: refused, naming the precision to resume with
+    proc = resume(str(out / "case0_chk_000000100.h5"), "lbm.precision=single")
+    assert proc.returncode != 0
+    assert "lbm.precision = 'double'" in proc.stderr, proc.stderr
+    assert "--set lbm.precision=double" in proc.stderr, proc.stderr
     assert (out / "case0.h5").read_bytes() == before

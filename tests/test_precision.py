@@ -1,0 +1,141 @@
+"""lbm.precision: populations stored in 4 bytes as f_i - w_i keep the accuracy of 8 bytes; the
+naive 4-byte f_i does not (docs/model.md §1, "Storage of the populations").
+
+Every error is measured against a closed-form solution computed here from the inputs, never
+against an earlier output of the program. The bounds come from the round-off of the storage:
+
+- rounding to 4 bytes changes a stored value by at most u_r = 2^-24 of itself (round to
+  nearest, 24-bit significand). Stored as f_i - w_i, the value is the deviation that carries
+  the flow: at rho = 1, f_i - w_i = 3 w_i c_i.u + O(u^2), and sum_i |c_iy| 3 w_i |c_iy u| = u,
+  so one rounding of every population moves u by at most u_r |u| (relative u_r), plus the
+  non-equilibrium and force parts, below the equilibrium part at these rates; we allow a
+  factor 2 for them.
+- these errors enter every step and the flow forgets them on its slowest viscous time
+  T = (W/pi)^2 / nu_lb steps (its slowest mode decays as exp(-nu_lb (pi/W)^2 n)), so the
+  accumulated relative error of a steady flow is at most 2 u_r T, and of a run of N steps at
+  most 2 u_r min(N, T).
+- stored as f_i itself, a rounding moves f_i by up to u_r w_i, which is u_r/(3 |u|) of the
+  deviation 3 w_i |u|: at the Poiseuille run's u_max ~ 1e-4 (lattice units) that is about
+  3000 times the shifted form's relative round-off. We require a factor 100.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from dkt_run import INPUT, last_fields, run, run_args, run_attr
+
+U_R = 2.0**-24  # unit round-off of a 4-byte real (round to nearest)
+SAFETY = 2.0  # the non-equilibrium and force parts of f_i - w_i, besides the equilibrium part
+
+# input/poiseuille.nml: width 1 cm, g = 1e-5 cm/s^2, nu = 0.01 cm^2/s; 200 s is about 20 times
+# its slowest viscous time (T = 243 steps of 0.042 s), so the transient is down to ~1e-9
+POISEUILLE = ["run.t_end=200"]
+# input/taylor_green.nml at low Mach: u0 = 0.01 cm/s is 3.1e-4 in lattice units at tau = 0.53
+TG_U0, TG_NU, TG_L = 0.01, 0.01, 1.0
+TAYLOR_GREEN = ["lbm.tau=0.53", f"initial.velocity={TG_U0}"]
+
+
+def centres(n: int, dx: float) -> np.ndarray:
+    """Node positions: cell centres."""
+    return (np.arange(n) + 0.5) * dx
+
+
+def poiseuille(tmp_path: Path, precision: str) -> tuple[float, float]:
+    """Relative L2 error of u_y against g x (W - x)/(2 nu), and T = (W/pi)^2/nu_lb in steps."""
+    out = tmp_path / f"poiseuille_{precision}"
+    run("poiseuille.nml", 1, [*POISEUILLE, f"lbm.precision={precision}"], out)
+    h5 = out / "poiseuille.h5"
+    fields, _ = last_fields(h5)
+    uy = fields["uy"]
+    dx = run_attr(h5, "dx")
+    width, g, nu = 1.0, 1.0e-5, 0.01  # input/poiseuille.nml
+    x = centres(uy.shape[1], dx)
+    exact = np.broadcast_to(g * x * (width - x) / (2.0 * nu), uy.shape)
+    err = float(np.linalg.norm(uy - exact) / np.linalg.norm(exact))
+    relax = (width / dx / math.pi) ** 2 / run_attr(h5, "nu_lb")
+    return err, relax
+
+
+def taylor_green(tmp_path: Path, precision: str) -> tuple[float, float]:
+    """Relative L2 error of (u_x, u_y) against the decaying vortex, and min(N, T): the run's
+    steps N and the vortex's decay time T = 1/(2 nu_lb k^2) in steps (k per spacing)."""
+    out = tmp_path / f"tg_{precision}"
+    run("taylor_green.nml", 1, [*TAYLOR_GREEN, f"lbm.precision={precision}"], out)
+    h5 = out / "taylor_green.h5"
+    fields, attrs = last_fields(h5)
+    n = fields["ux"].shape[1]
+    k = 2.0 * math.pi / TG_L
+    xx, yy = np.meshgrid(centres(n, TG_L / n), centres(n, TG_L / n))  # arrays are (ny, nx)
+    decay = math.exp(-2.0 * TG_NU * k * k * attrs["time"])
+    ux = -TG_U0 * np.cos(k * xx) * np.sin(k * yy) * decay
+    uy = TG_U0 * np.sin(k * xx) * np.cos(k * yy) * decay
+    err = math.sqrt(
+        float(np.sum((fields["ux"] - ux) ** 2 + (fields["uy"] - uy) ** 2) / np.sum(ux**2 + uy**2))
+    )
+    k_lb = k * TG_L / n
+    relax = 1.0 / (2.0 * run_attr(h5, "nu_lb") * k_lb * k_lb)
+    return err, min(run_attr(h5, "steps"), relax)
+
+
+def test_single_poiseuille_is_within_storage_round_off_of_double(tmp_path: Path) -> None:
+    """Body-force Poiseuille flow (exact for the scheme in 8 bytes): the 4-byte shifted
+    storage adds at most 2 u_r T to the relative L2 error (module docstring)."""
+    double, relax = poiseuille(tmp_path, "double")
+    single, _ = poiseuille(tmp_path, "single")
+    bound = SAFETY * U_R * relax
+    print(f"Poiseuille L2: double {double:.3e}, single {single:.3e}, bound +{bound:.3e}")
+    assert double < 1e-7, f"the 8-byte run is not at its steady exact state: {double:.3e}"
+    assert single <= double + bound, f"single {single:.3e} > double {double:.3e} + {bound:.3e}"
+
+
+def test_single_taylor_green_is_within_storage_round_off_of_double(tmp_path: Path) -> None:
+    """Low-Mach Taylor-Green decay: the 4-byte shifted storage changes the relative L2 error
+    against the analytic decay by at most 2 u_r min(N, T) (module docstring)."""
+    double, steps = taylor_green(tmp_path, "double")
+    single, _ = taylor_green(tmp_path, "single")
+    bound = SAFETY * U_R * steps
+    print(f"Taylor-Green L2: double {double:.3e}, single {single:.3e}, bound +-{bound:.3e}")
+    # the scheme's own error at 32 cells: second order, a few 1e-3 (tests/test_flows.py)
+    assert double < 1e-2, f"the 8-byte run is off the analytic decay: {double:.3e}"
+    assert abs(single - double) <= bound, f"single {single:.3e}, double {double:.3e}"
+
+
+def test_naive_single_storage_is_measurably_worse_at_low_mach(tmp_path: Path) -> None:
+    """The check against the naive form: storing f_i (not f_i - w_i) in 4 bytes spends the
+    significand on w_i. On the low-Mach Poiseuille flow (u_max ~ 1e-4) its excess error over
+    8 bytes must be at least 100 times that of the shifted form (about 1/(3 u_max) ~ 3000 is
+    expected, module docstring), and above the shifted form's own bound."""
+    double, relax = poiseuille(tmp_path, "double")
+    single, _ = poiseuille(tmp_path, "single")
+    naive, _ = poiseuille(tmp_path, "single_unshifted")
+    print(f"Poiseuille L2: double {double:.3e}, single {single:.3e}, unshifted {naive:.3e}")
+    assert naive - double > SAFETY * U_R * relax, f"unshifted {naive:.3e} is within round-off"
+    assert naive - double > 100.0 * (single - double), (
+        f"unshifted {naive:.3e} is not 100 times further from exact than shifted {single:.3e}"
+    )
+
+
+def lattice_mib(precision: str, tmp_path: Path) -> float:
+    args = [str(INPUT / "bench_channel.nml"), "--check", "--set", f"lbm.precision={precision}"]
+    args += ["--set", f"output.dir={tmp_path / precision}"]
+    proc = run_args(args, ranks=1, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    m = re.search(
+        r"memory per rank: lattices ([0-9.]+) MiB \(populations stored in (\d) bytes", proc.stdout
+    )
+    assert m, proc.stdout
+    assert int(m.group(2)) == (4 if precision.startswith("single") else 8)
+    return float(m.group(1))
+
+
+def test_check_counts_four_bytes_per_population_in_single(tmp_path: Path) -> None:
+    """--check (and the memory check behind it) counts 4 bytes a population in the 4-byte
+    forms: exactly half the lattice memory of 8 bytes (to the printed 0.01 MiB)."""
+    double = lattice_mib("double", tmp_path)
+    for precision in ("single", "single_unshifted"):
+        assert abs(lattice_mib(precision, tmp_path) - double / 2) <= 0.01, precision
