@@ -281,9 +281,6 @@ contains
                   gt=0.5_wp, le=10.0_wp)
     call add_choice(reg, 'lbm', 'collision', c%lbm%collision, 'mrt bgk', &
                     'collision model: multiple-relaxation-time (E1) or BGK (E4)')
-    call add_choice(reg, 'lbm', 'streaming', c%lbm%streaming, 'in_place two_lattice', &
-                    'one lattice swept in place, or two (read one, write the other); '// &
-                    'the same results to the bit, in_place needs half the memory')
     call add_real(reg, 'lbm', 's_e', c%lbm%s_e, '-', 'MRT rate of the energy moment (E3)', &
                   gt=0.0_wp, lt=2.0_wp)
     call add_real(reg, 'lbm', 's_eps', c%lbm%s_eps, '-', &
@@ -299,6 +296,9 @@ contains
                     'population storage: 8 bytes, or 4 bytes holding f_i - w_i (computed in 8 '// &
                     'either way); single_unshifted stores f_i in 4 bytes, only to measure '// &
                     'what the shift buys, not for use')
+    call add_choice(reg, 'lbm', 'streaming', c%lbm%streaming, 'in_place two_lattice', &
+                    'one lattice swept in place, or two (read one, write the other); '// &
+                    'the same results to the bit, in_place needs half the memory')
 
     call add_real(reg, 'inlet', 'velocity', c%inlet%velocity, 'cm/s', &
                   'signed y-velocity at a velocity end (centreline value if parabolic)')

@@ -78,7 +78,9 @@ contains
         write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
       end if
-      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB (populations stored in '// &
+      line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB ('// &
+             trim(merge('one lattice, streamed in place', 'two lattices                  ', &
+                        cfg%lbm%streaming == 'in_place'))//'; populations stored in '// &
              itoa(lattice_bytes(cfg%lbm%precision))//' bytes, lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
              fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
