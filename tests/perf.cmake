@@ -1,6 +1,7 @@
 # Benchmark (label perf, not in the default test run): MLUPS of the flow-only 500 x 1250 channel
 # with MRT and BGK on 1 and 2 ranks in every storage layout the executable accepts, median of 3
-# interleaved runs each, ratios to double/two_lattice, and the memory per cell of each layout. Run it with `ctest --preset perf`
+# interleaved runs each, ratios to double/two_lattice, and the memory per cell of each layout.
+# Run it with `ctest --preset perf`
 # (or `ctest --test-dir build -L perf -V` to see the table).
 if(Python3_FOUND)
   add_test(NAME perf_mlups_channel

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import sys
@@ -51,20 +50,11 @@ KIB = 1024
 def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--exe",
-        default=os.environ.get("DKTLBM_EXE", str(ROOT / "build/dktlbm")),
-        help="dktlbm executable (default: $DKTLBM_EXE or build/dktlbm)",
-    )
-    parser.add_argument(
         "--scene",
         default=str(ROOT / "input/bench_channel.nml"),
         help="namelist of the benchmark scene",
     )
-    parser.add_argument(
-        "--mpiexec",
-        default=os.environ.get("MPIEXEC") or "mpiexec",
-        help="MPI launcher (default: $MPIEXEC or mpiexec)",
-    )
+    benchlib.add_common_arguments(parser)
     parser.add_argument(
         "--ranks", type=int, nargs="+", default=[1, 2], help="rank counts to measure (default: 1 2)"
     )
@@ -74,20 +64,6 @@ def parse_args() -> argparse.Namespace:
         default=["mrt", "bgk"],
         choices=["mrt", "bgk"],
         help="collision operators (default: mrt bgk)",
-    )
-    parser.add_argument(
-        "--precisions",
-        nargs="+",
-        default=list(benchlib.PRECISIONS),
-        choices=benchlib.PRECISIONS,
-        help="lbm.precision values (default: double single)",
-    )
-    parser.add_argument(
-        "--streaming",
-        nargs="+",
-        default=list(benchlib.STREAMINGS),
-        choices=benchlib.STREAMINGS,
-        help="lbm.streaming values (default: two_lattice in_place)",
     )
     parser.add_argument("--repeats", type=int, default=3, help="runs per configuration (>= 1)")
     parser.add_argument(

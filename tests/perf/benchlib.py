@@ -5,13 +5,15 @@ sys.path when they run).
 
 Storage layouts are chosen with the input keys lbm.precision ('double' | 'single') and
 lbm.streaming ('two_lattice' | 'in_place'). An executable that refuses a layout (an older build
-without the keys, or a combination it does not implement) is asked once with --check, and the
-layout is skipped with its message; the baseline layout, double on two lattices, runs without the
-keys on an executable that does not know them (its only layout).
+without the keys, or a combination it does not implement) is asked with --check before any run,
+and the layout is skipped with its message. A key the executable does not know is left out when
+its value is the default (double, two_lattice), so a build with one of the keys runs both of its
+layouts and a build with neither runs the baseline.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import platform
 import re
@@ -26,6 +28,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PRECISIONS = ("double", "single")
 STREAMINGS = ("two_lattice", "in_place")
 BASELINE = ("double", "two_lattice")
+# the layout of a build without the keys, and the keys' defaults
+DEFAULTS = {"precision": BASELINE[0], "streaming": BASELINE[1]}
 
 # Bytes one lattice node moves per time step through memory: 9 populations read and 9 written,
 # 8 or 4 bytes each. With two lattices the written lattice is not the read one, and a plain
@@ -60,6 +64,34 @@ class Layout:
         return (self.precision, self.streaming) == BASELINE
 
 
+def add_common_arguments(parser: argparse.ArgumentParser) -> None:
+    """--exe, --mpiexec, --precisions and --streaming, as every dktlbm benchmark takes them."""
+    parser.add_argument(
+        "--exe",
+        default=os.environ.get("DKTLBM_EXE", str(ROOT / "build/dktlbm")),
+        help="dktlbm executable (default: $DKTLBM_EXE or build/dktlbm)",
+    )
+    parser.add_argument(
+        "--mpiexec",
+        default=os.environ.get("MPIEXEC") or "mpiexec",
+        help="MPI launcher (default: $MPIEXEC or mpiexec)",
+    )
+    parser.add_argument(
+        "--precisions",
+        nargs="+",
+        default=list(PRECISIONS),
+        choices=PRECISIONS,
+        help="lbm.precision values (default: double single)",
+    )
+    parser.add_argument(
+        "--streaming",
+        nargs="+",
+        default=list(STREAMINGS),
+        choices=STREAMINGS,
+        help="lbm.streaming values (default: two_lattice in_place)",
+    )
+
+
 def allow_root_mpi() -> None:
     """Open MPI refuses to run as root unless told (CI and containers run as root)."""
     if os.geteuid() == 0:
@@ -75,10 +107,6 @@ def launcher(mpiexec: str, ranks: int) -> list[str]:
         if re.search(r"Open MPI|OpenRTE", version.stdout + version.stderr):
             command.append("--oversubscribe")
     return command
-
-
-def storage_options(precision: str, streaming: str) -> list[str]:
-    return ["--set", f"lbm.precision={precision}", "--set", f"lbm.streaming={streaming}"]
 
 
 def first_error(output: str) -> str:
@@ -105,28 +133,39 @@ def probe_layouts(
     accepted = []
     for precision in precisions:
         for streaming in streamings:
-            options = storage_options(precision, streaming)
-            target = probe_dir / f"probe-{len(list(probe_dir.glob('probe-*')))}"
-            check = ["--check", "--set", f"output.dir={target}"]
-            result = subprocess.run(
-                prefix + scene_args + options + check, capture_output=True, text=True
-            )
-            if result.returncode == 0:
-                accepted.append(Layout(precision, streaming, tuple(options)))
-                continue
-            reason = first_error(result.stdout + result.stderr)
-            if (precision, streaming) == BASELINE:
-                plain = subprocess.run(prefix + scene_args + check, capture_output=True, text=True)
-                if plain.returncode == 0:
-                    note = "the executable has no lbm.precision/lbm.streaming keys: its own layout"
-                    print(f"  {label}{precision}/{streaming}: {note}", flush=True)
-                    accepted.append(Layout(precision, streaming, (), note))
-                    continue
-            print(
-                f"  {label}{precision}/{streaming}: skipped, the executable refuses it "
-                f"(exit {result.returncode}): {reason}",
-                flush=True,
-            )
+            # Both keys first; then without a key whose value is its default, for an executable
+            # that knows one of the keys only (the layout is then still the one asked for).
+            keys = {"precision": precision, "streaming": streaming}
+            dropped = [k for k, v in keys.items() if DEFAULTS[k] == v]
+            tries = [[]] + [[k] for k in dropped] + ([dropped] if len(dropped) == 2 else [])
+            failure = None
+            for omit in tries:
+                options = [
+                    part
+                    for key, value in keys.items()
+                    if key not in omit
+                    for part in ("--set", f"lbm.{key}={value}")
+                ]
+                target = probe_dir / f"probe-{len(list(probe_dir.glob('probe-*')))}"
+                check = ["--check", "--set", f"output.dir={target}"]
+                result = subprocess.run(
+                    prefix + scene_args + options + check, capture_output=True, text=True
+                )
+                if result.returncode == 0:
+                    note = ""
+                    if omit:
+                        names = " and ".join(f"lbm.{k}" for k in omit)
+                        note = f"the executable has no {names}: run without, its default"
+                        print(f"  {label}{precision}/{streaming}: {note}", flush=True)
+                    accepted.append(Layout(precision, streaming, tuple(options), note))
+                    break
+                failure = failure or result
+            else:
+                print(
+                    f"  {label}{precision}/{streaming}: skipped, the executable refuses it "
+                    f"(exit {failure.returncode}): {first_error(failure.stdout + failure.stderr)}",
+                    flush=True,
+                )
     return accepted
 
 
