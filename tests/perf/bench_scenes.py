@@ -33,7 +33,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--exe", default=os.environ.get("DKTLBM_EXE", str(ROOT / "build/dktlbm")))
     parser.add_argument("--mpiexec", default=shutil.which("mpiexec") or "mpiexec")
-    parser.add_argument("--scenes", nargs="+", default=["input/case0_box.nml", "input/case1.nml"])
+    parser.add_argument(
+        "--scenes", nargs="+", default=["input/case0_box.nml", "input/case1.nml"]
+    )
     parser.add_argument("--ranks", nargs="+", type=int, default=[1, 2])
     parser.add_argument("--steps", type=int, default=2000, help="time steps per run")
     parser.add_argument("--repeats", type=int, default=3)
@@ -46,17 +48,10 @@ def main() -> int:
                 for ranks in args.ranks:
                     # series every 10 steps and fields at the end: output is part of the run
                     cmd = [
-                        args.mpiexec,
-                        "-n",
-                        str(ranks),
-                        args.exe,
-                        str(ROOT / scene),
-                        "--set",
-                        f"run.steps={args.steps}",
-                        "--set",
-                        "run.progress_every=0",
-                        "--set",
-                        f"output.dir={tmp}/{Path(scene).stem}-{ranks}-{repeat}",
+                        args.mpiexec, "-n", str(ranks), args.exe, str(ROOT / scene),
+                        "--set", f"run.steps={args.steps}",
+                        "--set", "run.progress_every=0",
+                        "--set", f"output.dir={tmp}/{Path(scene).stem}-{ranks}-{repeat}",
                     ]
                     proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
                     match = PERFORMANCE.search(proc.stdout)
@@ -64,15 +59,11 @@ def main() -> int:
                         print(f"run failed: {' '.join(cmd)}\n{proc.stderr}", file=sys.stderr)
                         return 1
                     results.setdefault((scene, ranks), []).append(float(match.group(1)))
-    print(
-        f"{'scene':<24} {'ranks':>5} {'median':>8} {'min':>8} {'max':>8}  MLUPS, "
-        f"{args.steps} steps, {args.repeats} runs"
-    )
+    print(f"{'scene':<24} {'ranks':>5} {'median':>8} {'min':>8} {'max':>8}  MLUPS, "
+          f"{args.steps} steps, {args.repeats} runs")
     for (scene, ranks), values in results.items():
-        print(
-            f"{scene:<24} {ranks:>5} {statistics.median(values):8.1f} {min(values):8.1f} "
-            f"{max(values):8.1f}"
-        )
+        print(f"{scene:<24} {ranks:>5} {statistics.median(values):8.1f} {min(values):8.1f} "
+              f"{max(values):8.1f}")
     return 0
 
 
