@@ -1,5 +1,7 @@
 # Benchmark (label perf, not in the default test run): MLUPS of the flow-only 500 x 1250 channel
-# with MRT and BGK on 1 and 2 ranks, median of 3 runs each. Run it with `ctest --preset perf`
+# with MRT and BGK on 1 and 2 ranks in every storage layout the executable accepts, median of 3
+# interleaved runs each, ratios to double/two_lattice, and the memory per cell of each layout.
+# Run it with `ctest --preset perf`
 # (or `ctest --test-dir build -L perf -V` to see the table).
 if(Python3_FOUND)
   add_test(NAME perf_mlups_channel
@@ -14,5 +16,34 @@ if(Python3_FOUND)
     RUN_SERIAL TRUE
     # Not the test environment: that one allows oversubscription, which Open MPI answers by not
     # binding ranks to cores.
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
+endif()
+
+# STREAM-like memory bandwidth of the machine (tests/perf/stream_copy.f90), the ceiling of the
+# memory-bound sweep: tests/perf/roofline.py runs it on 1 and 2 ranks and prints the MLUPS each
+# storage layout could reach at that bandwidth. One small file without dktlbm_core, built with
+# the rest so that it stays compiling (debug and asan builds included).
+add_executable(stream_copy "${CMAKE_CURRENT_SOURCE_DIR}/perf/stream_copy.f90")
+target_link_libraries(stream_copy PRIVATE MPI::MPI_Fortran)
+set_target_properties(stream_copy PROPERTIES
+  RUNTIME_OUTPUT_DIRECTORY "${CMAKE_CURRENT_BINARY_DIR}"
+  Fortran_MODULE_DIRECTORY "${CMAKE_BINARY_DIR}/mod/tests/stream_copy")
+dkt_set_fortran_flags(stream_copy)
+if(CMAKE_Fortran_COMPILER_ID STREQUAL "GNU")
+  # gfortran turns the copy loop into a memcpy call, whose large-size path uses non-temporal
+  # stores; the sweep's stores are plain ones, so the copy must be too.
+  set_source_files_properties("${CMAKE_CURRENT_SOURCE_DIR}/perf/stream_copy.f90" PROPERTIES
+    COMPILE_OPTIONS "-fno-tree-loop-distribute-patterns")
+endif()
+if(Python3_FOUND)
+  add_test(NAME perf_roofline
+    COMMAND "${Python3_EXECUTABLE}" "${CMAKE_CURRENT_SOURCE_DIR}/perf/roofline.py"
+      --exe $<TARGET_FILE:stream_copy>
+      --mpiexec "${MPIEXEC_EXECUTABLE}"
+      --ranks 1 2)
+  set_tests_properties(perf_roofline PROPERTIES
+    LABELS perf
+    TIMEOUT 600
+    RUN_SERIAL TRUE
     ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
 endif()
