@@ -27,11 +27,12 @@ contains
   !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
   !! memory check: (1) the lattice (one with lbm.streaming = 'in_place', two otherwise), 9
   !! populations per padded node (nxp columns, nyl rows and two halo rows) of 8 bytes, or 4 with
-  !! lbm.precision = 'single', and the in-place sweep's row buffers (18 doubles per column);
+  !! lbm.precision = 'single';
   !! (2) the particles: per-row force sums (3 doubles per row and particle) and the boundary
   !! links, at most 8 per surface node and about pi d + 8 surface nodes per particle of d
   !! spacings (28 bytes a link); (3) the output: the field buffer of
-  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column).
+  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column) and the
+  !! row buffers of the sweep (SWEEP_ROW_DOUBLES per padded column).
   pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(in) :: lp
@@ -40,15 +41,15 @@ contains
     real(wp) :: d_cells
     integer :: n
     bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming == 'in_place')*9.0_wp* &
-               real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)*real(nyl + 2, wp) + &
-               SWEEP_ROW_DOUBLES*8.0_wp*real(nxp, wp)
+               real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)*real(nyl + 2, wp)
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then
       d_cells = largest_diameter(cfg)/lp%dx
       bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
     end if
-    bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp)
+    bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp) + &
+               SWEEP_ROW_DOUBLES*8.0_wp*real(nxp, wp)
   end function rank_memory
 
   !> Stop every rank before the lattices are allocated when the ranks of one node would need

@@ -126,7 +126,8 @@ def lattice_mib(precision: str, tmp_path: Path) -> float:
     proc = run_args(args, ranks=1, timeout=60)
     assert proc.returncode == 0, proc.stderr
     m = re.search(
-        r"memory per rank: lattices ([0-9.]+) MiB \(populations stored in (\d) bytes", proc.stdout
+        r"memory per rank: lattices ([0-9.]+) MiB \([^;]*; populations stored in (\d) bytes",
+        proc.stdout,
     )
     assert m, proc.stdout
     assert int(m.group(2)) == (4 if precision.startswith("single") else 8)
