@@ -133,8 +133,8 @@ def row_window(out: Path, precision: str, ranks: int) -> list[tuple[str, object,
     dy_max = 100 * np.max(np.abs(w["y"][:, 0] - s["y"][:, 0])) / D
     wall, cmd = sum(walls), " ; ".join(cmds)
     return [
-        ("window vs static, largest |dx| [% of D]", float(dx_max), wall, cmd),
-        ("window vs static, largest |dy| [% of D]", float(dy_max), wall, cmd),
+        ("window vs static, largest x difference [% of D]", float(dx_max), wall, cmd),
+        ("window vs static, largest y difference [% of D]", float(dy_max), wall, cmd),
         (
             "window vs static, largest position difference [% of D]",
             float(max(dx_max, dy_max)),
