@@ -89,20 +89,9 @@ contains
   !> A random but positive lattice with periodic ghosts in x and y.
   subroutine random_lattice(f)
     real(wp), intent(out) :: f(0:nxp - 1, 0:nyl + 1, 0:8)
-    integer :: x, j
-    real(wp) :: r(3)
-    f = 0.0_wp
-    do j = 1, nyl
-      do x = 1, nx
-        call random_number(r)
-        f(x, j, :) = equilibrium(1.0_wp + 0.05_wp*(r(1) - 0.5_wp), 0.08_wp*(r(2) - 0.5_wp), &
-                                 0.08_wp*(r(3) - 0.5_wp))
-        call random_number(r)
-        f(x, j, 1:3) = f(x, j, 1:3)*(1.0_wp + 0.02_wp*(r - 0.5_wp))
-      end do
-    end do
-    f(1:nx, 0, :) = f(1:nx, nyl, :)
-    f(1:nx, nyl + 1, :) = f(1:nx, 1, :)
+    call random_rows(f, nyl)
+    f(:, 0, :) = f(:, nyl, :)
+    f(:, nyl + 1, :) = f(:, 1, :)
     f(0, :, :) = f(nx, :, :)
     f(nx + 1, :, :) = f(1, :, :)
   end subroutine random_lattice
