@@ -6,13 +6,17 @@ Each case is a short run of a small scene, chosen so that together the cases cov
 - 1, 2, 3 and 4 ranks (oversubscribed on a 2-core machine);
 - particles whose centres cross a slab face while the window shifts, and in a box;
 - open ends (velocity and outflow, E5), closed ends (walls) and periodic ends;
-- populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single').
+- populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single');
+- in-place streaming (the default) against two lattices (lbm.streaming = 'two_lattice').
 
 For every case and every rank count, every dataset under /particles, /diagnostics and /fields
 (fields written several times during the run) must be bitwise equal to the 1-rank run, and the
-pattern attributes of /diagnostics must agree. Each case also asserts the property it was
-chosen for (the split is uneven, ny is prime, the window shifted, a centre crossed a face on
-that rank count), so that a change of defaults cannot quietly turn it into a friendly case.
+pattern attributes of /diagnostics must agree; and the run with two lattices must be bitwise the
+in-place run, on 1 rank and on 4 (where slabs are thinnest, and a slab of fewer than 6 rows is
+swept whole after the halo exchange instead of in three parts around it). Each case also
+asserts the property it was chosen for (the split is uneven, ny is prime, the window shifted, a
+centre crossed a face on that rank count, a slab is thin), so that a change of defaults cannot
+quietly turn it into a friendly case.
 
 This test fails on the code before the uneven-split fix (commit f7a9e9b): there the padded x
 extent of a slab depended on its row count, and the window shift sent a row of the sender's
@@ -112,7 +116,8 @@ CASES: dict[str, dict] = {
         "window": False,
         "crosses": (3,),
     },
-    # Periodic ends with a body force (flow only: particles are refused in a periodic channel)
+    # Periodic ends with a body force (flow only: particles are refused in a periodic channel);
+    # 23 rows, a slab of 5 on 4 ranks (swept whole in place after the halo exchange)
     "periodic_ends_prime_rows": {
         "nml": "poiseuille.nml",
         "sets": [
@@ -125,6 +130,7 @@ CASES: dict[str, dict] = {
         "nx": "odd",
         "window": False,
         "crosses": (),
+        "thin_on": 4,
     },
     # The reported repro at the paper's resolution: gamma = 1.3, a 325 x 813 window
     "repro_gamma_1_3": {
@@ -187,20 +193,19 @@ class Runs:
         self.root = root
         self.done: dict[tuple[str, int], tuple | str] = {}
 
-    def get(self, case: str, ranks: int) -> tuple:
-        if (case, ranks) not in self.done:
+    def get(self, case: str, ranks: int, streaming: str = "in_place") -> tuple:
+        key = (case, ranks, streaming)
+        if key not in self.done:
             spec = CASES[case]
-            d = self.root / f"{case}_r{ranks}"
-            sets = spec["sets"] + ["output.series_interval=1e-9"]
+            d = self.root / f"{case}_r{ranks}_{streaming}"
+            sets = spec["sets"] + ["output.series_interval=1e-9", f"lbm.streaming={streaming}"]
             proc = run(spec["nml"], ranks, sets, d, check=False)
             if proc.returncode != 0:
-                self.done[case, ranks] = (
-                    f"exit {proc.returncode}:\n{proc.stdout[-2000:]}{proc.stderr}"
-                )
+                self.done[key] = f"exit {proc.returncode}:\n{proc.stdout[-2000:]}{proc.stderr}"
             else:
-                self.done[case, ranks] = datasets(d / f"{Path(spec['nml']).stem}.h5")
-        got = self.done[case, ranks]
-        assert not isinstance(got, str), f"{case} on {ranks} ranks failed: {got}"
+                self.done[key] = datasets(d / f"{Path(spec['nml']).stem}.h5")
+        got = self.done[key]
+        assert not isinstance(got, str), f"{case} ({streaming}) on {ranks} ranks failed: {got}"
         return got
 
 
@@ -223,6 +228,9 @@ def test_case_hits_the_split_it_claims(runs: Runs, case: str) -> None:
         assert uneven, f"{case}: ny = {ny} splits evenly on every rank count"
     if "nx" in spec:
         assert (nx % 2 == 1) == (spec["nx"] == "odd"), f"{case}: nx = {nx}"
+    if "thin_on" in spec:
+        slabs = rows_for(ny, spec["thin_on"])
+        assert min(slabs) < 6, f"{case}: no slab thinner than 6 rows ({slabs})"
     if "particles/window_offset" in data:
         offset = data["particles/window_offset"]
         assert (offset[-1] != offset[0]) == spec["window"], f"{case}: window shifts {offset}"
@@ -248,19 +256,36 @@ def test_case_hits_the_split_it_claims(runs: Runs, case: str) -> None:
         assert crossed, f"{case}: no centre crossed a slab face on {n} ranks (faces {faces(ny, n)})"
 
 
+def assert_same_bits(ref: tuple, other: tuple, what: str) -> None:
+    ref_data, ref_diag, _ = ref
+    data, diag, _ = other
+    assert data.keys() == ref_data.keys(), f"{what}: the datasets differ"
+    bad = []
+    for key, arr in ref_data.items():
+        # bytes, not values: NaN (C_d of a disk at rest) must match NaN, and -0.0 only -0.0
+        if arr.dtype != data[key].dtype or arr.tobytes() != data[key].tobytes():
+            diff = np.nanmax(np.abs(arr.astype(float) - data[key].astype(float)))
+            bad.append(f"{key} (max |diff| {diff:.3e})")
+    assert not bad, f"{what}: " + ", ".join(bad)
+    assert {k: str(v) for k, v in diag.items()} == {k: str(v) for k, v in ref_diag.items()}
+
+
+@pytest.mark.parametrize("ranks", (1, 4))
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_two_lattices_give_the_in_place_bits(runs: Runs, case: str, ranks: int) -> None:
+    fields = [k for k in runs.get(case, ranks)[0] if k.startswith("fields/")]
+    assert len(fields) >= 2 * 5, f"{case}: too few field snapshots to compare the run's course"
+    assert_same_bits(
+        runs.get(case, ranks),
+        runs.get(case, ranks, "two_lattice"),
+        f"{case} on {ranks} ranks: two lattices against in place",
+    )
+
+
 @pytest.mark.parametrize("ranks", RANKS[1:])
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_every_dataset_is_bitwise_the_1_rank_run(runs: Runs, case: str, ranks: int) -> None:
-    ref, ref_diag, _ = runs.get(case, 1)
-    other, diag, _ = runs.get(case, ranks)
-    assert other.keys() == ref.keys(), f"{case}: datasets differ on {ranks} ranks"
-    fields = [k for k in ref if k.startswith("fields/")]
+    ref = runs.get(case, 1)
+    fields = [k for k in ref[0] if k.startswith("fields/")]
     assert len(fields) >= 2 * 5, f"{case}: too few field snapshots to compare the run's course"
-    bad = []
-    for key, arr in ref.items():
-        # bytes, not values: NaN (C_d of a disk at rest) must match NaN, and -0.0 only -0.0
-        if arr.dtype != other[key].dtype or arr.tobytes() != other[key].tobytes():
-            diff = np.nanmax(np.abs(arr.astype(float) - other[key].astype(float)))
-            bad.append(f"{key} (max |diff| {diff:.3e})")
-    assert not bad, f"{case}: differs on {ranks} ranks from 1 rank: " + ", ".join(bad)
-    assert {k: str(v) for k, v in diag.items()} == {k: str(v) for k, v in ref_diag.items()}
+    assert_same_bits(ref, runs.get(case, ranks), f"{case}: differs on {ranks} ranks from 1 rank")
