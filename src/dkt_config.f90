@@ -18,7 +18,8 @@ module dkt_config
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
-  public :: dx_knob, pair_d1, largest_diameter, particles_allocate
+  public :: dx_knob, pair_d1, largest_diameter, particles_allocate, velocity_scale
+  public :: compressibility_class
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -45,6 +46,9 @@ module dkt_config
     real(wp) :: s_eps = 1.25_wp           !! MRT energy-square rate (E3)
     real(wp) :: s_q = 0.0_wp              !! MRT heat-flux rate; 0 = the E3 rule
     real(wp) :: cells_per_diameter = 0.0_wp !! > 0: dx from the smallest particle; 0 = use dx
+    !> > 0: the target expected Mach number u_scale/c_s, which sets tau from dx and the scene's
+    !! velocity scale (acoustic scaling, docs/model.md §1 "Mach-aware set-up"); 0 = use tau
+    real(wp) :: mach = 0.0_wp
     !> 'in_place': one lattice, swept row by row; 'two_lattice': read one, write the other
     character(len=12) :: streaming = 'in_place'
     !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), or
@@ -246,6 +250,14 @@ module dkt_config
   !> a time step outside DT_MIN..DT_MAX s comes from a viscosity or density in the wrong units
   !! (no flow on a cm lattice needs it), and makes the lattice-unit forces under- or overflow
   real(wp), parameter :: DT_MIN = 1.0e-12_wp, DT_MAX = 1.0e6_wp
+  real(wp), parameter :: TAU_MAX = 10.0_wp !! the largest lbm.tau, typed or set by lbm.mach
+  !> the smallest tau lbm.mach may set: nu_lb >= 1/300, the 0.01 above 1/2 keeps clear of the
+  !! stability edge of MRT near tau = 1/2 (the window test runs at 0.52; docs/model.md §1)
+  real(wp), parameter :: TAU_MACH_MIN = 0.51_wp
+  !> upper ends of the compressibility error classes in Ma^2 (docs/model.md §1, "Mach-aware
+  !! set-up", ties them to the measured window table): negligible, small, noticeable; above
+  !! the last one, large
+  real(wp), parameter, public :: MA2_CLASS_TOPS(3) = [1.0e-3_wp, 1.0e-2_wp, 5.0e-2_wp]
 
 contains
 
@@ -277,8 +289,8 @@ contains
 
     call add_real(reg, 'lbm', 'dx', c%lbm%dx, 'cm', 'lattice spacing', gt=0.0_wp)
     call add_real(reg, 'lbm', 'tau', c%lbm%tau, '-', &
-                  'relaxation time in time steps; sets nu_lb = (tau - 1/2)/3 and dt (E3)', &
-                  gt=0.5_wp, le=10.0_wp)
+                  'relaxation time in time steps; sets nu_lb = (tau - 1/2)/3 and dt (E3); '// &
+                  'not used when lbm.mach > 0', gt=0.5_wp, le=TAU_MAX)
     call add_choice(reg, 'lbm', 'collision', c%lbm%collision, 'mrt bgk', &
                     'collision model: multiple-relaxation-time (E1) or BGK (E4)')
     call add_real(reg, 'lbm', 's_e', c%lbm%s_e, '-', 'MRT rate of the energy moment (E3)', &
@@ -291,6 +303,11 @@ contains
     call add_real(reg, 'lbm', 'cells_per_diameter', c%lbm%cells_per_diameter, '-', &
                   'lattice spacings across the smallest particle; > 0 sets dx = width/'// &
                   'nint(width n/D_min) in place of dx; 0 = use dx', ge=4.0_wp, le=1000.0_wp, &
+                  zero_ok=.true.)
+    call add_real(reg, 'lbm', 'mach', c%lbm%mach, '-', &
+                  'target expected Mach number u_scale/c_s; > 0 sets tau = 1/2 + 3 mach c_s '// &
+                  'nu/(u_scale dx) in place of tau (acoustic scaling: dt ~ dx), u_scale the '// &
+                  'velocity scale of the report; 0 = use tau', gt=0.0_wp, le=1.0_wp, &
                   zero_ok=.true.)
     call add_choice(reg, 'lbm', 'precision', c%lbm%precision, PRECISION_NAMES, &
                     'population storage: 8 bytes, or 4 bytes holding f_i - w_i (computed in 8 '// &
@@ -629,6 +646,48 @@ contains
         c%inlet%ramp_time = 0.0_wp
       end if
     end associate
+    if (c%lbm%mach > 0.0_wp) call tau_from_mach()
+  contains
+    !> lbm.mach > 0: tau = 1/2 + Ma nu/(c_s U dx) (E3 with u_lb = U dt/dx = Ma c_s), in place
+    !! of lbm.tau, which is then not used; refused when it falls outside
+    !! TAU_MACH_MIN..TAU_MAX, when the scene has no velocity scale, or above run.mach_limit.
+    subroutine tau_from_mach()
+      character(len=:), allocatable :: source, head, knob
+      real(wp) :: u, nu, tau, per_tau
+      nu = c%fluid%viscosity/c%fluid%density
+      call velocity_scale(c, u, source)
+      head = blame(reg, 'lbm.mach', c%file)//': &lbm mach = '//fmt_real(c%lbm%mach)
+      if (.not. (u > 0.0_wp .and. ieee_is_finite(u))) then
+        err = head//' in a scene whose velocity scale is '//fmt_real(u)//' cm/s (largest: '// &
+              source//'): a Mach target needs a moving scene; allowed: lbm.mach = 0 (set '// &
+              'lbm.tau instead), or a scene with an inlet, initial or body-force flow or '// &
+              'moving particles'
+        return
+      end if
+      if (c%lbm%mach > c%run%mach_limit) then
+        err = head//' is above &run mach_limit = '//fmt_real(c%run%mach_limit)// &
+              ', at which the guard stops the run; allowed: 0 < mach <= mach_limit; lower '// &
+              'lbm.mach'
+        return
+      end if
+      ! Ma per unit of tau - 1/2 on this lattice: Ma = (tau - 1/2) c_s U dx/nu
+      per_tau = sqrt(cs2)*u*c%lbm%dx/nu
+      tau = 0.5_wp + c%lbm%mach/per_tau
+      if (tau < TAU_MACH_MIN .or. tau > TAU_MAX .or. .not. ieee_is_finite(tau)) then
+        ! tau - 1/2 ~ mach/dx: a tau too large comes down with a larger dx, and vice versa
+        knob = dx_knob(c, larger=tau > TAU_MAX)
+        err = head//' needs tau = 1/2 + mach nu/(c_s U dx) = '//fmt_real(tau)// &
+              ' with the velocity scale U = '//fmt_real(u)//' cm/s (from '//source// &
+              '), dx = '//fmt_real(c%lbm%dx)//' cm and nu = '//fmt_real(nu)// &
+              ' cm^2/s; allowed: '//fmt_real(TAU_MACH_MIN)//' <= tau <= '// &
+              fmt_real(TAU_MAX)//', i.e. '// &
+              fmt_real((TAU_MACH_MIN - 0.5_wp)*per_tau)//' <= mach <= '// &
+              fmt_real((TAU_MAX - 0.5_wp)*per_tau)//' on this lattice; change lbm.mach, or '// &
+              knob//' (tau - 1/2 ~ 1/dx at a fixed mach), or set lbm.mach = 0 and use lbm.tau'
+        return
+      end if
+      c%lbm%tau = tau
+    end subroutine tau_from_mach
   end subroutine expand
 
   !> D_1 (cm), the pair's larger diameter: the larger of particles 1 and 2 (particle 1 when it
@@ -698,7 +757,39 @@ contains
   function velocity_scale_source(c) result(s)
     type(config_t), intent(in) :: c
     character(len=:), allocatable :: s
-    real(wp) :: u, best, nu
+    real(wp) :: best
+    call velocity_scale(c, best, s)
+  end function velocity_scale_source
+
+  !> The compressibility error class of an expected Mach number (docs/model.md §1, "Mach-aware
+  !! set-up"): the weakly compressible scheme errs by O(Ma^2), named by the classes of
+  !! MA2_CLASS_TOPS, e.g. 'noticeable (1e-2..5e-2)'.
+  function compressibility_class(mach) result(s)
+    real(wp), intent(in) :: mach
+    character(len=:), allocatable :: s
+    real(wp) :: m2
+    m2 = mach**2
+    if (m2 < MA2_CLASS_TOPS(1)) then
+      s = 'negligible (< 1e-3)'
+    else if (m2 < MA2_CLASS_TOPS(2)) then
+      s = 'small (1e-3..1e-2)'
+    else if (m2 < MA2_CLASS_TOPS(3)) then
+      s = 'noticeable (1e-2..5e-2)'
+    else
+      s = 'large (> 5e-2)'
+    end if
+  end function compressibility_class
+
+  !> The velocity scale of the scene in cm/s (docs/model.md §1, "Mach-aware set-up"): the
+  !! largest of |inlet.velocity|, initial.velocity, the body-force Poiseuille peak
+  !! |g| W^2/(8 nu), each particle's |(u, v)| and, for a free particle, its settling speed
+  !! scale sqrt(pi D/2 |rho_p/rho_f - 1| g). lattice_from takes the same maximum in lattice
+  !! units (u_scale_lb = best dt/dx); `s` names the key(s) behind the largest.
+  subroutine velocity_scale(c, best, s)
+    type(config_t), intent(in) :: c
+    real(wp), intent(out) :: best
+    character(len=:), allocatable, intent(out) :: s
+    real(wp) :: u, nu
     integer :: k
     nu = c%fluid%viscosity/c%fluid%density
     best = abs(c%inlet%velocity)
@@ -729,7 +820,7 @@ contains
         end if
       end do
     end associate
-  end function velocity_scale_source
+  end subroutine velocity_scale
 
   !> A scene file holds at least one namelist group: an empty file, or one of comments and
   !! blank lines only, would otherwise run the whole default scene without a word. (Text

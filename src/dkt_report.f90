@@ -4,7 +4,7 @@ module dkt_report
   use mpi_f08, only: MPI_Wtime
   use dkt_kinds, only: wp, i8
   use dkt_errors, only: warn
-  use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob
+  use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob, compressibility_class
   use dkt_mrt, only: collision_describe
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
@@ -46,6 +46,14 @@ contains
       call log_line(trim(line))
       write (line, '(a,es12.4e3,a,es12.4e3,a,es12.4e3)') 'velocity scale ', &
         lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
+      call log_line(trim(line))
+      ! the weakly compressible error is O(Ma^2) (docs/model.md §1, "Mach-aware set-up")
+      write (line, '(a,es10.3e2,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
+      line = trim(line)//' '//compressibility_class(lp%mach)
+      if (cfg%lbm%mach > 0.0_wp) then
+        write (line, '(a,f8.5,a,es10.3e2,a)') trim(line)//'; tau = ', lp%tau, &
+          ' from lbm.mach = ', cfg%lbm%mach, ' (acoustic scaling; lbm.tau not used)'
+      end if
       call log_line(trim(line))
       if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
         ! measured: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shlex
 import signal
 import subprocess
@@ -104,6 +105,13 @@ def session_pids(sid: int, comm: str | None = None) -> list[int]:
     return pids
 
 
+def number_after(label: str, text: str) -> float:
+    """The number printed right after `label` in `text` (a report line such as "dt = 1e-4")."""
+    m = re.search(re.escape(label) + r"\s*([-+0-9.]+(?:[eE][-+]?[0-9]+)?)", text)
+    assert m, f"{label!r} not found in:\n{text}"
+    return float(m.group(1))
+
+
 def run_args(
     args: list[str],
     ranks: int = 1,
@@ -165,8 +173,14 @@ def sigterm_when_logged(
     cmd = [*mpi_command(ranks), str(EXE), str(path)]
     for s in [*sets, f"output.dir={outdir}"]:
         cmd += ["--set", s]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=mpi_env(), start_new_session=True)
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=mpi_env(),
+        start_new_session=True,
+    )
     deadline = time.time() + timeout
     log = outdir / f"{path.stem}.log"
     while time.time() < deadline:

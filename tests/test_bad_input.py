@@ -28,7 +28,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_env, run_args, tree_digest
+from dkt_run import EXE, INPUT, ROOT, mpi_env, number_after, run_args, tree_digest
 
 RANKS = 2
 TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails the test
@@ -259,6 +259,58 @@ CASES = {
             "without particles",
             "allowed: 0",
         ],
+    ),
+    # ---- lbm.mach (input/README.md; docs/model.md §1 "Mach-aware set-up")
+    # tau - 1/2 = mach nu/(c_s U dx): Ma 0.005 at 12 per D (U = 1.75 cm/s, dx = 1/120 cm) needs
+    # tau = 0.506, inside the 0.01 margin above 1/2; a smaller dx would raise it
+    "mach-needs-tau-below-the-margin": Case(
+        args=["--set", "lbm.cells_per_diameter=12", "--set", "lbm.mach=0.005"],
+        base="case1.nml",
+        pieces=[
+            "{file}",
+            "--set lbm.mach=0.005",
+            "&lbm",
+            "mach = 0.005",
+            "0.51 <= tau <= 10",
+            "raise lbm.cells_per_diameter",
+        ],
+    ),
+    # the Poiseuille peak 1e-5 cm/s^2 (1 cm)^2/(8 nu) = 1.25e-4 cm/s is so slow that Ma 0.01
+    # needs tau = 28.2 on the 0.05 cm lattice; a larger dx would lower it
+    "mach-needs-tau-above-the-maximum": Case(
+        args=["--set", "lbm.mach=0.01"],
+        pieces=[
+            "{file}",
+            "--set lbm.mach=0.01",
+            "&lbm",
+            "mach = 0.01",
+            "0.51 <= tau <= 10",
+            "make lbm.dx larger",
+        ],
+    ),
+    # a fluid at rest has no velocity scale to take a Mach number of
+    "mach-without-a-velocity-scale": Case(
+        "body_force = 0.0, 1.0e-5",
+        "body_force = 0.0, 0.0",
+        args=["--set", "lbm.mach=0.05"],
+        pieces=[
+            "{file}",
+            "--set lbm.mach=0.05",
+            "&lbm",
+            "mach = 0.05",
+            "velocity scale",
+            "allowed: lbm.mach = 0",
+        ],
+    ),
+    # the guard would stop a run at its target at once
+    "mach-above-mach-limit": Case(
+        args=["--set", "lbm.mach=0.35"],
+        base="case1.nml",
+        pieces=["{file}", "--set lbm.mach=0.35", "&lbm", "mach = 0.35", "mach_limit = 0.3"],
+    ),
+    "mach-negative": Case(
+        args=["--set", "lbm.mach=-0.1"],
+        pieces=["{file}", "--set lbm.mach=-0.1", "&lbm", "mach = -0.1", "0 < mach <= 1"],
     ),
     # the window follows the lowest free particle: a fixed disk alone leaves nothing to follow
     "window-with-a-fixed-particle-only": Case(
@@ -620,12 +672,6 @@ def test_an_option_can_mend_a_bad_value_in_the_file(tmp_path: Path) -> None:
     proc = dkt([str(scene), "--check", "--set", "lbm.tau=0.9"], cwd)
     assert proc.returncode == 0, proc.stderr
     assert error_lines(proc.stderr) == []
-
-
-def number_after(label: str, text: str) -> float:
-    m = re.search(re.escape(label) + r"\s*([-+0-9.]+(?:[eE][-+]?[0-9]+)?)", text)
-    assert m, f"{label!r} not found in:\n{text}"
-    return float(m.group(1))
 
 
 @pytest.mark.parametrize("collision", ["mrt", "bgk"])
