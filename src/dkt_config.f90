@@ -142,6 +142,7 @@ module dkt_config
     integer :: progress_every = 1000      !! steps between progress lines; 0 = none
     integer :: guard_every = 100          !! steps between NaN/Mach guards
     real(wp) :: mach_limit = 0.3_wp       !! largest allowed u/c_s
+    real(wp) :: particle_speed_limit = 0.3_wp !! largest allowed particle |U| dt/dx
     integer :: checkpoint_every = 0       !! steps between checkpoints; 0 = none by steps
     real(wp) :: checkpoint_wall = 0.0_wp  !! s of wall time between checkpoints; 0 = none
     integer :: checkpoint_keep = 2        !! checkpoints kept (older ones are removed)
@@ -408,6 +409,9 @@ contains
     call add_real(reg, 'run', 'mach_limit', c%run%mach_limit, '-', &
                   'largest allowed Mach number u/c_s before the run is stopped', &
                   gt=0.0_wp, le=1.0_wp)
+    call add_real(reg, 'run', 'particle_speed_limit', c%run%particle_speed_limit, '-', &
+                  'largest allowed particle speed in lattice spacings per time step, '// &
+                  'checked every step; a faster particle stops the run', gt=0.0_wp, le=1.0_wp)
     call add_integer(reg, 'run', 'checkpoint_every', c%run%checkpoint_every, '-', &
                      'time steps between checkpoints; 0 = none by step count', ge=0)
     call add_real(reg, 'run', 'checkpoint_wall', c%run%checkpoint_wall, 's', &
@@ -929,6 +933,22 @@ contains
       end if
       u_max = c%run%mach_limit*sqrt(cs2)*lp%dx/lp%dt
       associate (p => c%particles)
+        ! any particle, free ones too: the particle guard would stop the run at step 1
+        do k = 1, p%count
+          speed = hypot(p%u(k), p%v(k))
+          if (speed*lp%dt/lp%dx <= c%run%particle_speed_limit) cycle
+          err = from('particles.v particles.u run.particle_speed_limit lbm.dx lbm.tau')// &
+                ': '//item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                ': particle '//itoa(k)//' starts at '// &
+                fmt_real(round6(speed*lp%dt/lp%dx))//' lattice spacings per step (dx = '// &
+                fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)//' s), above &run '// &
+                'particle_speed_limit = '//val('run', 'particle_speed_limit')//'; allowed: '// &
+                'a speed up to '// &
+                fmt_real(round6(c%run%particle_speed_limit*lp%dx/lp%dt, down=.true.))// &
+                ' cm/s; lower u('//itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
+                ' or lower &lbm tau (both shrink dt/dx)'
+          return
+        end do
         do k = 1, p%count
           if (p%motion(k) /= 'prescribed') cycle
           speed = hypot(p%u(k), p%v(k))

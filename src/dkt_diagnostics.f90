@@ -1,6 +1,7 @@
 !> Run diagnostics and guards: a non-finite population or a Mach number above the limit stops
 !> the run (collectively, its output written and closed) with what, where, when, and what to
-!> change. For a pair of particles (docs/model.md §6): the
+!> change; so does a particle faster than run.particle_speed_limit spacings per step (or with a
+!> non-finite velocity). For a pair of particles (docs/model.md §6): the
 !> gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
 !> the kissing episodes with the DKT pattern they make.
 !>
@@ -18,8 +19,8 @@ module dkt_diagnostics
   use dkt_store, only: lattice_t, lattice_get_node
   implicit none
   private
-  public :: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, pair_diag_update, &
-            pair_pattern, pair_gaps, drag_coefficient
+  public :: guard_check, guard_particle_speed, guard_set_advice, pair_diag_t, pair_diag_init, &
+            pair_diag_update, pair_pattern, pair_gaps, drag_coefficient
 
   !> The kissing episodes of a pair, updated as the run goes.
   type :: pair_diag_t
@@ -103,6 +104,40 @@ contains
     call MPI_Bcast(msg, len(msg), MPI_CHARACTER, root, dom%comm)
     failure = trim(msg)
   end subroutine guard_check
+
+  !> The particle guard: '' when every particle moves at most `limit` lattice spacings per
+  !! step, else what, where, when and what to change for the first that does not (a NaN or
+  !! infinite velocity fails too). A particle that fast crosses a node in under 1/limit steps:
+  !! its boundary links (E6) and the nodes it uncovers lag behind it, and the force on it is
+  !! no longer the fluid's. Every rank holds the same particle states (particles_move sends
+  !! them to all), so every rank returns the same failure without communication.
+  function guard_particle_speed(u, v, x, y, limit, step, t, dx, y_offset) result(failure)
+    real(wp), intent(in) :: u(:), v(:)    !! particle velocities, lattice units
+    real(wp), intent(in) :: x(:), y(:)    !! particle centres, lattice units
+    real(wp), intent(in) :: limit         !! run.particle_speed_limit
+    integer, intent(in) :: step           !! time step
+    real(wp), intent(in) :: t, dx         !! time (s) and lattice spacing (cm), for the message
+    real(wp), intent(in) :: y_offset      !! cm, y of the lattice's lower end (a moving window)
+    character(len=:), allocatable :: failure
+    character(len=512) :: msg
+    real(wp) :: speed
+    integer :: k
+    if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
+    failure = ''
+    do k = 1, size(u)
+      speed = hypot(u(k), v(k))
+      ! written so that a NaN speed fails as well
+      if (speed <= limit) cycle
+      write (msg, '(a,i0,a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(es12.4e3,a),a)') &
+        'particle ', k, ' moves ', speed, ' lattice spacings per step, above '// &
+        'run.particle_speed_limit = ', limit, ', at step ', step, ' (t = ', t, &
+        ' s), centre at (', x(k)*dx, ', ', y_offset + y(k)*dx, ') cm: its boundary links '// &
+        'lag behind it. Lower lbm.tau or '//dx_advice//' (both shrink dt/dx), or slow the '// &
+        'particle (density ratio, gravity, initial u, v)'
+      failure = trim(msg)
+      return
+    end do
+  end function guard_particle_speed
 
   !> Start with no episode; the thresholds are in the units of the D_r given to the updates.
   subroutine pair_diag_init(d, enter, release)
