@@ -98,8 +98,6 @@ contains
       call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)
     end if
-    ! the guards' advice names the knob that sets dx in this scene
-    call guard_set_advice(dx_knob(cfg))
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
       associate (d1 => largest_diameter(cfg)/lp%dx)
@@ -107,6 +105,9 @@ contains
       end associate
     end if
     if (sim%particles_on) call setup_particles(sim)
+    ! the guards' advice names the knob that sets dx in this scene, and s_q where it is the
+    ! measured cause of a run-away flow
+    call guard_set_advice(dx_knob(cfg), sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
     sim%pair_on = cfg%particles%count >= 2
     if (sim%pair_on) then
       call kiss_thresholds(cfg, enter, release)
