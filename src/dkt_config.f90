@@ -249,7 +249,7 @@ module dkt_config
   !! stopped by the Mach guard (or not measured); U is the velocity scale of the input check.
   real(wp), parameter :: MAP_TAU(*) = [0.501_wp, 0.505_wp, 0.51_wp, 0.52_wp, 0.55_wp, 0.6_wp, &
                                        0.65_wp, 0.8_wp, 1.0_wp, 1.5_wp, 2.0_wp]
-  real(wp), parameter :: MAP_RE_CELL(*) = [60.0_wp, 60.0_wp, 30.0_wp, 30.0_wp, 10.0_wp, 3.0_wp, &
+  real(wp), parameter :: MAP_RE_CELL(*) = [120.0_wp, 60.0_wp, 30.0_wp, 30.0_wp, 10.0_wp, 3.0_wp, &
                                            3.0_wp, 3.0_wp, 1.0_wp, 1.0_wp, 0.3_wp]
   !> more time steps than this is surely a unit or typing error (a day at 10^4 steps/s)
   real(wp), parameter :: MAX_STEPS = 1.0e9_wp
