@@ -172,6 +172,29 @@ def test_large_tau_at_the_scenes_reynolds_number_stops_at_the_mach_guard(tmp_pat
     assert_guard(out, "Mach number", "run.mach_limit", "lbm.tau", "lbm.cells_per_diameter")
 
 
+@pytest.mark.parametrize("scene", ["single.nml", "case0_box.nml", "case1.nml", "uhlmann.nml"])
+def test_check_is_quiet_for_the_shipped_scenes_and_warns_outside_the_map(
+    tmp_path: Path, scene: str
+) -> None:
+    """--check: the validation scenes as shipped (Re_p/N from 0.5 to 17 at their tau) lie inside
+    the measured stable region and get no map warning; the same scene at tau = 1.6 (measured
+    Re_p/N <= 0.3 there, docs/stability_map.csv) gets one that names tau, Re_p and the map, and
+    at tau = 2.5 (beyond the measured taus) one that says so. Catches a warning that fires on
+    every scene (noise) or never."""
+    base = ["--check", "--set", f"output.dir={tmp_path / 'o'}"]
+    quiet = run_args([str(INPUT / scene), *base], 1, TIMEOUT, tmp_path)
+    assert quiet.returncode == 0, quiet.stderr
+    assert "measured" not in quiet.stderr, quiet.stderr
+    for tau, piece in (("1.6", "above the measured stable Re_p/N"), ("2.5", "measured tau range")):
+        proc = run_args(
+            [str(INPUT / scene), *base, "--set", f"lbm.tau={tau}"], 1, TIMEOUT, tmp_path
+        )
+        warning = [ln for ln in proc.stderr.splitlines() if piece in ln]
+        assert len(warning) == 1, proc.stderr
+        assert f"tau = {tau}" in warning[0] and "Re_p" in warning[0], warning[0]
+        assert "docs/stability.md" in warning[0], warning[0]
+
+
 # ---- density ratio: 1.001 to 10, and below 1 ------------------------------------------------
 
 
