@@ -146,6 +146,7 @@ module dkt_config
     integer :: progress_every = 1000      !! steps between progress lines; 0 = none
     integer :: guard_every = 100          !! steps between NaN/Mach guards
     real(wp) :: mach_limit = 0.3_wp       !! largest allowed u/c_s
+    real(wp) :: particle_speed_limit = 0.3_wp !! largest allowed particle |U| dt/dx
     integer :: checkpoint_every = 0       !! steps between checkpoints; 0 = none by steps
     real(wp) :: checkpoint_wall = 0.0_wp  !! s of wall time between checkpoints; 0 = none
     integer :: checkpoint_keep = 2        !! checkpoints kept (older ones are removed)
@@ -245,6 +246,15 @@ module dkt_config
   real(wp), parameter :: MIN_CELLS_PER_D = 4.0_wp  !! fewer cells per diameter: refused
   real(wp), parameter :: GOOD_CELLS_PER_D = 8.0_wp !! fewer cells per diameter: a warning
   real(wp), parameter :: CONTACT_TOL = 1.0e-12_wp  !! relative round-off of a typed distance
+  !> The measured stable region of a settling disk (docs/stability.md, from
+  !! docs/stability_map.csv: tests/perf/stability_map.py, input/single.nml at 10 spacings per
+  !! diameter): at each MAP_TAU, the largest lattice Reynolds number U dx/nu = Re_p/N (N spacings
+  !! per diameter) below which every run of the grid finished stable. Beyond it, runs were
+  !! stopped by the Mach guard (or not measured); U is the velocity scale of the input check.
+  real(wp), parameter :: MAP_TAU(*) = [0.501_wp, 0.505_wp, 0.51_wp, 0.52_wp, 0.55_wp, 0.6_wp, &
+                                       0.65_wp, 0.8_wp, 1.0_wp, 1.5_wp, 2.0_wp]
+  real(wp), parameter :: MAP_RE_CELL(*) = [120.0_wp, 60.0_wp, 30.0_wp, 30.0_wp, 10.0_wp, 3.0_wp, &
+                                           3.0_wp, 3.0_wp, 1.0_wp, 1.0_wp, 0.3_wp]
   !> more time steps than this is surely a unit or typing error (a day at 10^4 steps/s)
   real(wp), parameter :: MAX_STEPS = 1.0e9_wp
   !> a time step outside DT_MIN..DT_MAX s comes from a viscosity or density in the wrong units
@@ -425,6 +435,9 @@ contains
     call add_real(reg, 'run', 'mach_limit', c%run%mach_limit, '-', &
                   'largest allowed Mach number u/c_s before the run is stopped', &
                   gt=0.0_wp, le=1.0_wp)
+    call add_real(reg, 'run', 'particle_speed_limit', c%run%particle_speed_limit, '-', &
+                  'largest allowed particle speed in lattice spacings per time step, '// &
+                  'checked every step; a faster particle stops the run', gt=0.0_wp, le=1.0_wp)
     call add_integer(reg, 'run', 'checkpoint_every', c%run%checkpoint_every, '-', &
                      'time steps between checkpoints; 0 = none by step count', ge=0)
     call add_real(reg, 'run', 'checkpoint_wall', c%run%checkpoint_wall, 's', &
@@ -932,6 +945,7 @@ contains
     if (len(err) > 0) return
     call check_velocity_scale()
     if (len(err) > 0) return
+    call check_stability_map()
     if (c%particles%count >= 2) then
       call check_thresholds()
       if (len(err) > 0) return
@@ -1020,6 +1034,22 @@ contains
       end if
       u_max = c%run%mach_limit*sqrt(cs2)*lp%dx/lp%dt
       associate (p => c%particles)
+        ! any particle, free ones too: the particle guard would stop the run at step 1
+        do k = 1, p%count
+          speed = hypot(p%u(k), p%v(k))
+          if (speed*lp%dt/lp%dx <= c%run%particle_speed_limit) cycle
+          err = from('particles.v particles.u run.particle_speed_limit lbm.dx lbm.tau')// &
+                ': '//item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                ': particle '//itoa(k)//' starts at '// &
+                fmt_real(round6(speed*lp%dt/lp%dx))//' lattice spacings per step (dx = '// &
+                fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)//' s), above &run '// &
+                'particle_speed_limit = '//val('run', 'particle_speed_limit')//'; allowed: '// &
+                'a speed up to '// &
+                fmt_real(round6(c%run%particle_speed_limit*lp%dx/lp%dt, down=.true.))// &
+                ' cm/s; lower u('//itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
+                ' or lower &lbm tau (both shrink dt/dx)'
+          return
+        end do
         do k = 1, p%count
           if (p%motion(k) /= 'prescribed') cycle
           speed = hypot(p%u(k), p%v(k))
@@ -1038,6 +1068,51 @@ contains
         end do
       end associate
     end subroutine check_velocity_scale
+
+    !> A warning when a free particle's expected Reynolds number lies outside the measured
+    !! stable region at this tau (MAP_TAU, MAP_RE_CELL; between two measured taus the smaller
+    !! limit holds). The map's runs were single disks on the MRT model; the limit is in lattice
+    !! units, Re_p/N = U dx/nu, so that a finer lattice raises the allowed Re_p with N.
+    subroutine check_stability_map()
+      real(wp) :: nu, u, re_p, re_max, n_d
+      integer :: k, i
+      character(len=:), allocatable :: where, advice
+      nu = c%fluid%viscosity/c%fluid%density
+      re_max = 0.0_wp
+      where = 'outside the measured tau range '//fmt_real(MAP_TAU(1))//' to '// &
+              fmt_real(MAP_TAU(size(MAP_TAU)))
+      advice = 'choose lbm.tau within that range'
+      do i = 1, size(MAP_TAU) - 1
+        if (c%lbm%tau >= MAP_TAU(i) .and. c%lbm%tau <= MAP_TAU(i + 1)) then
+          re_max = min(MAP_RE_CELL(i), MAP_RE_CELL(i + 1))
+          where = ''
+          advice = 'make dx smaller (Re_p/N falls with dx), or slow the particle'
+          exit
+        end if
+      end do
+      associate (p => c%particles)
+        do k = 1, p%count
+          if (p%motion(k) /= 'free') cycle
+          u = max(hypot(p%u(k), p%v(k)), sqrt(0.5_wp*pi*p%diameter(k)* &
+                                              abs(p%density(k)/c%fluid%density - 1.0_wp)* &
+                                              p%gravity))
+          n_d = p%diameter(k)/c%lbm%dx
+          re_p = u*p%diameter(k)/nu
+          if (re_p/n_d <= re_max) cycle
+          if (len(where) == 0) where = 'above the measured stable Re_p/N = '// &
+                                       fmt_real(round6(re_max))//' at this tau, i.e. Re_p = '// &
+                                       fmt_real(round6(re_max*n_d))//' on this lattice'
+          if (len(warnings) > 0) warnings = warnings//NL
+          warnings = warnings//src('tau', 'lbm')//': &lbm tau = '//val('lbm', 'tau')// &
+                     ' and particle '//itoa(k)//'''s expected Reynolds number Re_p = U D/nu = '// &
+                     fmt_real(round6(re_p))//' (U = '//fmt_real(round6(u))//' cm/s, '// &
+                     fmt_real(round6(n_d))//' spacings per diameter) lie '//where// &
+                     ' (docs/stability.md, docs/stability_map.csv); the run may be stopped by '// &
+                     'a guard; '//advice
+          return
+        end do
+      end associate
+    end subroutine check_stability_map
 
     !> A prescribed particle moves in a straight line at its constant velocity, so where it is
     !! at the run's end (steps x dt) is known now: its path must stay in the channel (a wall
@@ -1258,8 +1333,42 @@ contains
                      fmt_real(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
                      itoa(nint(GOOD_CELLS_PER_D))
         end if
+        call check_wall_gap(k)
       end associate
     end subroutine check_particle
+
+    !> A warning for a free particle whose surface starts less than one lattice spacing from a
+    !! wall. Measured (docs/stability.md): input/single.nml at 10 spacings per diameter with the
+    !! surface 0.49 and 0.5 spacings from the side wall was stopped by the Mach guard after
+    !! 370-420 steps in the gap's flow, at 0.2, 0.75 and 1 spacing it ran through.
+    subroutine check_wall_gap(k)
+      integer, intent(in) :: k
+      real(wp) :: gap(4), r
+      logical :: wall(4)
+      character(len=*), parameter :: NAMES(4) = &
+                                     [character(len=12) :: 'x = 0', 'x = width', 'y = 0', &
+                                                            'y = height']
+      integer :: j
+      associate (p => c%particles, d => c%domain)
+        if (p%motion(k) /= 'free') return
+        r = 0.5_wp*p%diameter(k)
+        gap = [p%x(k) - r, d%width - p%x(k) - r, p%y(k) - r, d%height - p%y(k) - r]
+        wall = [d%sides == 'wall', d%sides == 'wall', &
+                d%lower == 'wall' .and. .not. c%window%enabled, &
+                d%upper == 'wall' .and. .not. c%window%enabled]
+        do j = 1, size(gap)
+          if (.not. wall(j) .or. gap(j) >= c%lbm%dx*(1.0_wp - CONTACT_TOL)) cycle
+          if (len(warnings) > 0) warnings = warnings//NL
+          warnings = warnings//from('particles.x particles.y lbm.dx')//': particle '// &
+                     itoa(k)//' starts with its surface '//fmt_real(round6(gap(j)/c%lbm%dx))// &
+                     ' lattice spacings from the wall at '//trim(NAMES(j))//' (dx = '// &
+                     fmt_real(c%lbm%dx)//' cm); a disk started half a spacing from a wall '// &
+                     'was measured to be stopped by the Mach guard in the gap''s flow '// &
+                     '(docs/stability.md); start it at least dx from the wall'
+          return
+        end do
+      end associate
+    end subroutine check_wall_gap
 
     !> Coordinate `key` = `pos` of the centre of particle k within 0..length (`dim`); a wall
     !! at the low (`lo_wall`) or high end (`hi_wall`) must be more than one radius away.

@@ -1,6 +1,7 @@
 !> Run diagnostics and guards: a non-finite population or a Mach number above the limit stops
 !> the run (collectively, its output written and closed) with what, where, when, and what to
-!> change. For a pair of particles (docs/model.md §6): the
+!> change; so does a particle faster than run.particle_speed_limit spacings per step (or with a
+!> non-finite velocity). For a pair of particles (docs/model.md §6): the
 !> gaps D_x, D_y, D_r, the particle Reynolds number Re_a and drag coefficient C_d (E12), and
 !> the kissing episodes with the DKT pattern they make.
 !>
@@ -18,8 +19,9 @@ module dkt_diagnostics
   use dkt_store, only: lattice_t, lattice_get_node
   implicit none
   private
-  public :: guard_check, guard_set_advice, pair_diag_t, pair_diag_init, pair_diag_update, &
-            pair_pattern, pair_gaps, drag_coefficient
+  public :: guard_check, guard_particle_speed, guard_set_advice, SQ_UNDAMPED, pair_diag_t, &
+            pair_diag_init, &
+            pair_diag_update, pair_pattern, pair_gaps, drag_coefficient
 
   !> The kissing episodes of a pair, updated as the run goes.
   type :: pair_diag_t
@@ -32,16 +34,35 @@ module dkt_diagnostics
     real(wp), allocatable :: gap_min(:)  !! smallest D_r of each episode
   end type pair_diag_t
 
+  !> MRT heat-flux rate below which the q moments count as almost undamped: the E3 rule gives
+  !! less near tau = 1/2 (0.06 at tau = 0.512, 0.005 at 0.501). Measured: the Uhlmann DKT pair
+  !! (input/uhlmann.nml, s_q = 0) blew up at tau = 0.512-0.53 at 20-40 spacings per diameter,
+  !! and with s_q = 1.2 ran through (docs/stability.md)
+  real(wp), parameter :: SQ_UNDAMPED = 0.25_wp
+
   !> how to make dx smaller in the running scene (lbm.dx, or lbm.cells_per_diameter when that
   !! sets dx), for the guards' advice
   character(len=:), allocatable, save :: dx_advice
+  !> what the non-finite and Mach guards add for the running scene ('' or the s_q advice)
+  character(len=:), allocatable, save :: extra_advice
 
 contains
 
-  !> Set how the guards' messages tell to make dx smaller (the scene's own knob).
-  subroutine guard_set_advice(dx_knob)
+  !> Set how the guards' messages tell to make dx smaller (the scene's own knob), and, for
+  !! moving particles on the MRT model with s_q below SQ_UNDAMPED, that the likely cause of a
+  !! run-away flow is the undamped heat-flux moments and how to damp them.
+  subroutine guard_set_advice(dx_knob, s_q, moving_mrt)
     character(len=*), intent(in) :: dx_knob
+    real(wp), intent(in) :: s_q           !! the heat-flux rate in use
+    logical, intent(in) :: moving_mrt     !! particles move and the collision is MRT
+    character(len=16) :: rate
     dx_advice = dx_knob
+    extra_advice = ''
+    if (moving_mrt .and. s_q < SQ_UNDAMPED) then
+      write (rate, '(f6.3)') s_q
+      extra_advice = '. The heat-flux rate s_q = '//trim(adjustl(rate))//' is below '// &
+                     'the measured stable range near tau = 1/2: set lbm.s_q = 1.2 first'
+    end if
   end subroutine guard_set_advice
 
   !> Check every node of the slab for a non-finite value or |u|/c_s above mach_limit.
@@ -62,9 +83,10 @@ contains
     integer, parameter :: OK = 0, TOO_FAST = 1, NON_FINITE = 2
     real(wp) :: rho, ux, uy, ma, fn(0:8)
     integer :: x, j, kind, worst, root
-    character(len=512) :: msg
+    character(len=1024) :: msg
 
     if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
+    if (.not. allocated(extra_advice)) extra_advice = ''
     mach_max = 0.0_wp
     kind = OK
     msg = ''
@@ -77,7 +99,8 @@ contains
           write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') 'non-finite value at step ', &
             step, ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, &
             ', ', y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. The run became unstable: ', &
-            'increase lbm.tau, '//dx_advice//' for a smaller dt, or lower the velocity scale'
+            'increase lbm.tau, '//dx_advice//' for a smaller dt, or lower the velocity scale'// &
+            extra_advice
           kind = NON_FINITE
           exit scan
         end if
@@ -87,7 +110,7 @@ contains
             'Mach number ', ma, ' above run.mach_limit = ', mach_limit, ' at step ', step, &
             ' (t = ', t, ' s), node (', x, ', ', dom%y0 + j, ') at (', (x - 0.5_wp)*dx, ', ', &
             y_offset + (dom%y0 + j - 0.5_wp)*dx, ') cm. Lower lbm.tau or '//dx_advice//' ', &
-            '(both shrink dt and the lattice velocity), or lower the flow speed'
+            '(both shrink dt and the lattice velocity), or lower the flow speed'//extra_advice
           kind = TOO_FAST
         end if
         mach_max = max(mach_max, ma)
@@ -103,6 +126,40 @@ contains
     call MPI_Bcast(msg, len(msg), MPI_CHARACTER, root, dom%comm)
     failure = trim(msg)
   end subroutine guard_check
+
+  !> The particle guard: '' when every particle moves at most `limit` lattice spacings per
+  !! step, else what, where, when and what to change for the first that does not (a NaN or
+  !! infinite velocity fails too). A particle that fast crosses a node in under 1/limit steps:
+  !! its boundary links (E6) and the nodes it uncovers lag behind it, and the force on it is
+  !! no longer the fluid's. Every rank holds the same particle states (particles_move sends
+  !! them to all), so every rank returns the same failure without communication.
+  function guard_particle_speed(u, v, x, y, limit, step, t, dx, y_offset) result(failure)
+    real(wp), intent(in) :: u(:), v(:)    !! particle velocities, lattice units
+    real(wp), intent(in) :: x(:), y(:)    !! particle centres, lattice units
+    real(wp), intent(in) :: limit         !! run.particle_speed_limit
+    integer, intent(in) :: step           !! time step
+    real(wp), intent(in) :: t, dx         !! time (s) and lattice spacing (cm), for the message
+    real(wp), intent(in) :: y_offset      !! cm, y of the lattice's lower end (a moving window)
+    character(len=:), allocatable :: failure
+    character(len=512) :: msg
+    real(wp) :: speed
+    integer :: k
+    if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
+    failure = ''
+    do k = 1, size(u)
+      speed = hypot(u(k), v(k))
+      ! written so that a NaN speed fails as well
+      if (speed <= limit) cycle
+      write (msg, '(a,i0,a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(es12.4e3,a),a)') &
+        'particle ', k, ' moves ', speed, ' lattice spacings per step, above '// &
+        'run.particle_speed_limit = ', limit, ', at step ', step, ' (t = ', t, &
+        ' s), centre at (', x(k)*dx, ', ', y_offset + y(k)*dx, ') cm: its boundary links '// &
+        'lag behind it. Lower lbm.tau or '//dx_advice//' (both shrink dt/dx), or slow the '// &
+        'particle (density ratio, gravity, initial u, v)'
+      failure = trim(msg)
+      return
+    end do
+  end function guard_particle_speed
 
   !> Start with no episode; the thresholds are in the units of the D_r given to the updates.
   subroutine pair_diag_init(d, enter, release)

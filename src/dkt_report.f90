@@ -6,6 +6,7 @@ module dkt_report
   use dkt_errors, only: warn
   use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob, compressibility_class
   use dkt_mrt, only: collision_describe
+  use dkt_diagnostics, only: SQ_UNDAMPED
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
@@ -55,8 +56,8 @@ contains
           ' from lbm.mach = ', cfg%lbm%mach, ' (acoustic scaling; lbm.tau not used)'
       end if
       call log_line(trim(line))
-      if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < 0.25_wp) then
-        ! measured: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
+      if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < SQ_UNDAMPED) then
+        ! SQ_UNDAMPED: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
         ! 20, 30 and 40 spacings per diameter; with s_q = 1.2 it ran through
         write (line, '(a,f6.3,a,f6.4,a)') 'the heat-flux rate s_q = ', sim%coll%s_q, &
           ' (tau = ', lp%tau, ') leaves the q moments almost undamped; with moving '// &

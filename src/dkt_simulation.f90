@@ -19,8 +19,8 @@ module dkt_simulation
                            particles_interior, particles_reduce_forces, particles_move, &
                            particles_stable_substeps, MOTION_FREE, MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
-  use dkt_diagnostics, only: guard_check, guard_set_advice, pair_diag_init, pair_diag_update, &
-                             pair_gaps
+  use dkt_diagnostics, only: guard_check, guard_particle_speed, guard_set_advice, &
+                             pair_diag_init, pair_diag_update, pair_gaps
   use dkt_window, only: window_init, window_offset, window_follow, window_escaped
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
@@ -98,8 +98,6 @@ contains
       call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)
     end if
-    ! the guards' advice names the knob that sets dx in this scene
-    call guard_set_advice(dx_knob(cfg))
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
       associate (d1 => largest_diameter(cfg)/lp%dx)
@@ -107,6 +105,9 @@ contains
       end associate
     end if
     if (sim%particles_on) call setup_particles(sim)
+    ! the guards' advice names the knob that sets dx in this scene, and s_q where it is the
+    ! measured cause of a run-away flow
+    call guard_set_advice(dx_knob(cfg), sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
     sim%pair_on = cfg%particles%count >= 2
     if (sim%pair_on) then
       call kiss_thresholds(cfg, enter, release)
@@ -197,7 +198,7 @@ contains
     integer :: n
     real(wp) :: t, mach, y0
     logical :: last, stop
-    character(len=:), allocatable :: failure, placed
+    character(len=:), allocatable :: failure, placed, fast
 
     associate (lp => sim%lp, cfg => sim%cfg)
       if (.not. sim%restarted) then
@@ -226,12 +227,21 @@ contains
         ! output is written below. A free particle leaves the channel only when the flow has
         ! become unstable, and then the guard's diagnosis (where, what to change) is the one
         ! to give.
-        if (len(failure) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. last) then
+        ! the particle speed guard is cheap (one test per particle), so it runs every step
+        fast = ''
+        if (sim%particles_move .and. len(failure) == 0) &
+          fast = guard_particle_speed(sim%parts%p%u, sim%parts%p%v, sim%parts%p%x, &
+                                      sim%parts%p%y, cfg%run%particle_speed_limit, n, t, &
+                                      lp%dx, y0)
+        if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
+            last) then
           placed = failure
           call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
                            mach, failure)
           if (len(failure) > 0) exit
           failure = placed
+          if (len(failure) > 0) exit
+          failure = fast
           if (len(failure) > 0) exit
         end if
         if (.not. last) call output_scheduled(sim, n)

@@ -13,6 +13,14 @@ dkt_add_pytest(NAME cli_bad_input FILE tests/test_bad_input.py LABELS mpi PROCES
 dkt_add_pytest(NAME cli_input_fuzz FILE tests/test_input_fuzz.py LABELS mpi PROCESSORS 2
   TIMEOUT 300)
 dkt_add_pytest(NAME cli_guards FILE tests/test_guards.py LABELS mpi PROCESSORS 2 TIMEOUT 120)
+# test_stability.py: preview runs at the extremes (tau, density ratio, particle Reynolds number,
+# gamma, wall and contact approaches), each stable with a stated bound, stopped by a named guard,
+# or refused (docs/stability.md). The cheap cases (about 25 s on 2 busy cores) run by default;
+# stability_extremes adds the rest (about 60 s) and runs only with `ctest -L stability`.
+dkt_add_pytest(NAME stability FILE tests/test_stability.py LABELS mpi stability PROCESSORS 2
+  TIMEOUT 180)
+dkt_add_pytest(NAME stability_extremes FILE tests/test_stability.py LABELS stability long
+  PROCESSORS 2 TIMEOUT 600 ENV "DKTLBM_STABILITY=all")
 dkt_add_pytest(NAME cli_output_contract FILE tests/test_output_contract.py LABELS regression
   PROCESSORS 2 TIMEOUT 120)
 # A run that stops early (guard, signal, wall limit, failed marker write) keeps its output up to

@@ -7,17 +7,21 @@
 !>    threshold and end where it rises above the release threshold (hysteresis), to within one
 !>    sample;
 !>  - D_x, D_y, D_r of two disks in a 3-4-5 geometry;
-!>  - the drag coefficient E12 for a known force and velocity, and NaN for a particle at rest.
+!>  - the drag coefficient E12 for a known force and velocity, and NaN for a particle at rest;
+!>  - the particle speed guard: quiet at or below the limit (a 3-4-5 velocity of speed 5 against
+!>    5), failing above it and for a NaN or infinite velocity, naming the first failing
+!>    particle, its speed, the step and its centre in cm.
 program test_diagnostics
-  use ieee_arithmetic, only: ieee_is_nan
+  use ieee_arithmetic, only: ieee_is_nan, ieee_value, ieee_quiet_nan, ieee_positive_inf
   use dkt_kinds, only: wp, pi
   use dkt_check, only: check, finish
   use dkt_diagnostics, only: pair_diag_t, pair_diag_init, pair_diag_update, pair_pattern, &
-                             pair_gaps, drag_coefficient
+                             pair_gaps, drag_coefficient, guard_particle_speed
   implicit none
   type(pair_diag_t) :: d
   real(wp), parameter :: enter = 1.0_wp, release = 2.0_wp
-  real(wp) :: gx, gy, gr, cd(3), t_end_1, t_end_2, dt
+  real(wp) :: gx, gy, gr, cd(3), t_end_1, t_end_2, dt, bad
+  character(len=:), allocatable :: msg
   integer :: k, n
 
   ! ---- never: the gap closes to just above the enter threshold and opens again
@@ -118,6 +122,21 @@ program test_diagnostics
   call check('drag coefficient elemental, signed', abs(cd(2) - 0.5_wp) < 1.0e-14_wp .and. &
              abs(cd(3) + 2.0_wp) < 1.0e-14_wp, cd(2) - 0.5_wp)
 
+  ! ---- particle speed guard: two particles, lattice units, dx = 0.5 cm
+  msg = speed_failure(3.0_wp, 4.0_wp, 5.0_wp)
+  call check('speed guard: |U| = 5 at the limit 5 passes (3-4-5)', len(msg) == 0, 0.0_wp)
+  msg = speed_failure(3.0_wp, 4.0_wp, 4.99_wp)
+  call check('speed guard: |U| = 5 above the limit 4.99 fails', &
+             index(msg, 'particle 2 moves') > 0 .and. index(msg, 'at step 7') > 0 .and. &
+             index(msg, 'run.particle_speed_limit') > 0, real(len(msg), wp))
+  call check('speed guard: centre in cm, y = 12 dx', index(msg, '6.0000E+000') > 0, 0.0_wp)
+  bad = ieee_value(bad, ieee_quiet_nan)
+  msg = speed_failure(bad, 0.0_wp, 1.0_wp)
+  call check('speed guard: a NaN velocity fails', index(msg, 'particle 2 moves') > 0, 0.0_wp)
+  bad = ieee_value(bad, ieee_positive_inf)
+  msg = speed_failure(0.0_wp, bad, 1.0_wp)
+  call check('speed guard: an infinite velocity fails', index(msg, 'particle 2') > 0, 0.0_wp)
+
   call finish()
 
 contains
@@ -132,5 +151,14 @@ contains
       call pair_diag_update(d, real(i, wp), gaps(i))
     end do
   end subroutine feed
+
+  !> The speed guard's message for particle 1 at rest and particle 2 at (u, v), centres
+  !! (4, 6) and (10, 12) lattice units, dx = 0.5 cm, at step 7
+  function speed_failure(u, v, limit) result(msg)
+    real(wp), intent(in) :: u, v, limit
+    character(len=:), allocatable :: msg
+    msg = guard_particle_speed([0.0_wp, u], [0.0_wp, v], [4.0_wp, 10.0_wp], [6.0_wp, 12.0_wp], &
+                               limit, 7, 0.7_wp, 0.5_wp, 0.0_wp)
+  end function speed_failure
 
 end program test_diagnostics
