@@ -75,9 +75,11 @@ def row_single(out: Path, precision: str, ranks: int) -> list[tuple[str, object,
     return [(q, v, wall, cmd) for q, v in answers_single(out / "single.h5")]
 
 
-def answers_single(h5file: Path) -> list[tuple[str, object]]:
-    """Re_max = rho_p D |U|max / mu of input/single.nml's disk, and when it is reached."""
+def answers_single(h5file: Path, t_max: float = np.inf) -> list[tuple[str, object]]:
+    """Re_max = rho_p D |U|max / mu of input/single.nml's disk up to t_max, and when it is
+    reached."""
     s = series(h5file)
+    s = {name: values[s["t"] <= t_max] for name, values in s.items()}
     speed = np.hypot(s["u"][:, 0], s["v"][:, 0])
     return [
         ("single disk Re_max (ref. 17.3)", 1.25 * 0.25 * speed.max() / 0.1),
