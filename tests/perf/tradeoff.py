@@ -303,8 +303,11 @@ def relative_error(value: object, ref: object) -> float:
     return abs(float(value) - float(ref)) / abs(float(ref))
 
 
-def analyse(records: list[dict]) -> tuple[list[dict], dict[str, tuple[object, dict]], dict]:
-    """Rows of the CSV, the reference per quantity, and one summary per configuration."""
+def analyse(
+    records: list[dict], exclude: tuple[str, ...] = ()
+) -> tuple[list[dict], dict[str, tuple[object, dict]], dict]:
+    """Rows of the CSV, the reference per quantity, and one summary per configuration (whose
+    error leaves out the quantities named in `exclude`)."""
     published = {**PUBLISHED, **uhlmann_published()}
     reference: dict[str, tuple[object, dict]] = {}
     for scene in SCENES:
@@ -317,18 +320,26 @@ def analyse(records: list[dict]) -> tuple[list[dict], dict[str, tuple[object, di
     for r in records:
         key = config_key(r["config"])
         entry = summary.setdefault(
-            key, {"config": r["config"], "wall_s": 0.0, "rss": 0.0, "error": 0.0, "scenes": []}
-        )
+            key,
+            {"config": r["config"], "wall_s": 0.0, "rss": 0.0, "error": 0.0, "error_pub": 0.0,
+             "updates": 0, "scenes": [], "values": {}, "stops": []},
+        )  # fmt: skip
         entry["wall_s"] += r["wall_s"]
         entry["rss"] = max(entry["rss"], r["peak_rss_mib"])
         entry["scenes"].append(r["scene"])
+        entry["updates"] += r["lattice_updates"]
+        if r["status"] != "finished":
+            entry["stops"].append(r["scene"])
         for quantity, value in r["answers"]:
             ref, ref_config = reference.get(quantity, (None, {}))
             err_ref = relative_error(value, ref) if ref is not None else float("nan")
             pub = published.get(quantity)
             err_pub = relative_error(value, pub) if pub is not None else float("nan")
-            if quantity in MEASURED[r["scene"]]:
+            if quantity in MEASURED[r["scene"]] and quantity not in exclude:
                 entry["error"] = max(entry["error"], err_ref)
+                entry["values"][quantity] = value
+                if pub is not None:
+                    entry["error_pub"] = max(entry["error_pub"], err_pub)
             rows.append({**r["config"], "scene": r["scene"], "ranks": r["ranks"],
                          "status": r["status"], "wall_s": r["wall_s"],
                          "walls": " ".join(map(str, r["walls"])),
@@ -421,7 +432,7 @@ def recommend(summary: dict, scenes: list[str], reference_cfg: dict) -> list[str
 
 
 def fmt(value: object) -> str:
-    return f"{value:.5g}" if isinstance(value, float) else str(value)
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 def main() -> int:
@@ -439,6 +450,19 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=1, help="timed runs of each (fastest)")
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "tradeoff")
     parser.add_argument("--figure", type=Path, default=ROOT / "docs" / "tradeoff.png")
+    parser.add_argument(
+        "--tolerances",
+        nargs="+",
+        metavar="USE=FRACTION",
+        help="recommended-settings tolerances (default preview=0.1 sweep=0.03 publication=0.01)",
+    )
+    parser.add_argument(
+        "--exclude",
+        nargs="+",
+        default=[],
+        metavar="QUANTITY",
+        help="quantities left out of a configuration's error (e.g. 'case0_box passing [s]')",
+    )
     parser.add_argument("--report-only", action="store_true", help="no runs: CSV and figure")
     args = parser.parse_args()
 
@@ -469,7 +493,12 @@ def main() -> int:
     if not records:
         print("no finished runs under", out)
         return 1
-    rows, reference, summary = analyse(records)
+    for spec in args.tolerances or []:
+        use, _, fraction = spec.partition("=")
+        TOLERANCES[use] = float(fraction)
+    rows, reference, summary = analyse(records, tuple(args.exclude))
+    if args.exclude:
+        print("left out of the error:", "; ".join(args.exclude))
     fields = list(dict.fromkeys(k for row in rows for k in row))
     with open(out / "tradeoff.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=fields)
@@ -486,11 +515,17 @@ def main() -> int:
         (e["config"] for e in summary.values() if sorted(e["scenes"]) == scenes), key=fineness
     )
     print(f"\nConfigurations that ran {' + '.join(scenes)}:\n")
-    print("| configuration | wall s | peak MiB | largest error vs reference |\n|---|---|---|---|")
+    quantities = [q for scene in scenes for q in MEASURED[scene] if q not in args.exclude]
+    head = ["configuration", "wall s", "10^9 updates", "peak MiB", *quantities,
+            "largest error vs reference", "largest error vs published", "guard stop"]  # fmt: skip
+    print("| " + " | ".join(head) + " |\n|" + "---|" * len(head))
     for e in sorted(summary.values(), key=lambda e: e["wall_s"]):
         if sorted(e["scenes"]) == scenes:
-            print(f"| {label(e['config'])} | {e['wall_s']:.0f} | {e['rss']:.0f} | "
-                  f"{e['error']:.2%} |")  # fmt: skip
+            cells = [label(e["config"]), f"{e['wall_s']:.1f}", f"{e['updates'] / 1e9:.2f}",
+                     f"{e['rss']:.0f}", *(fmt(e["values"].get(q, "—")) for q in quantities),
+                     f"{e['error']:.2%}", f"{e['error_pub']:.1%}",
+                     ", ".join(e["stops"]) or "—"]  # fmt: skip
+            print("| " + " | ".join(cells) + " |")
     args.figure.parent.mkdir(parents=True, exist_ok=True)
     figure(summary, scenes, ref_cfg, args.figure)
     print(f"\n{relative(args.figure.resolve())}\n\nRecommended settings:\n")
