@@ -382,6 +382,7 @@ def figure(summary: dict, scenes: list[str], reference_cfg: dict, path: Path) ->
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     entries = [e for e in summary.values() if sorted(e["scenes"]) == scenes]
     floor = 1e-4  # the reference itself has error 0: drawn at the floor
@@ -392,16 +393,21 @@ def figure(summary: dict, scenes: list[str], reference_cfg: dict, path: Path) ->
         single = e["config"].get("lbm.precision") == "single"
         ax.plot(x, y, "s" if single else "o", ms=7, mfc="none" if i not in front else "C3",
                 mec="C3" if i in front else "C0")  # fmt: skip
-        ax.annotate(point_label(e["config"], reference_cfg),
-                    (x, y), textcoords="offset points", xytext=(5, 4), fontsize=8)  # fmt: skip
+        ax.annotate(point_label(e["config"], reference_cfg), (x, y), textcoords="offset points",
+                    xytext=(5, 4 if i in front else -9), fontsize=7 if i in front else 6,
+                    color="black" if i in front else "grey")  # fmt: skip
     fx, fy = zip(*sorted(points[i] for i in front), strict=True)
     ax.step(fx, fy, where="post", color="C3", lw=1, label="Pareto front")
     for name, tol in TOLERANCES.items():
         ax.axhline(tol, color="grey", lw=0.6, ls=":")
-        ax.text(min(p[0] for p in points), tol, f" {name}",
-                fontsize=7, va="bottom", color="grey")  # fmt: skip
+        ax.text(max(p[0] for p in points), tol, f"{name} ", fontsize=7, va="bottom",
+                ha="right", color="grey")  # fmt: skip
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ticks = [t for t in (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000)
+             if min(p[0] for p in points) / 2 <= t <= 2 * max(p[0] for p in points)]  # fmt: skip
+    ax.set_xticks(ticks, [str(t) for t in ticks])
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel(f"wall time, sum over {' + '.join(scenes)} [s]")
     ax.set_ylabel("largest relative error vs the reference")
     ax.set_title(
