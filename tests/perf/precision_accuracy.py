@@ -94,6 +94,13 @@ def row_case0_box(out: Path, precision: str, ranks: int) -> list[tuple[str, obje
     return [(q, v, wall, cmd) for q, v in answers_case0_box(out / "case0_box.h5")]
 
 
+def episodes(diag: h5py.Group) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end times of the kissing episodes (none: the run writes no episodes group)."""
+    if "episodes" not in diag:
+        return np.empty(0), np.empty(0)
+    return diag["episodes/start"][()], diag["episodes/end"][()]
+
+
 def answers_case0_box(h5file: Path) -> list[tuple[str, object]]:
     """The gap at 0.5 s, the first kissing episode, the first passing and the run's pattern."""
     with h5py.File(h5file, "r") as h5:
@@ -101,8 +108,7 @@ def answers_case0_box(h5file: Path) -> list[tuple[str, object]]:
         y = h5["particles/y"][()]
         diag = h5["diagnostics"]
         dr = diag["dr"][()]
-        starts = diag["episodes/start"][()]
-        ends = diag["episodes/end"][()]
+        starts, ends = episodes(diag)
         pattern = diag.attrs["pattern"].decode()
     passing = t[np.nonzero(y[:, 0] < y[:, 1])[0]]
     return [
@@ -125,8 +131,7 @@ def answers_case1(h5file: Path) -> list[tuple[str, object]]:
     """The run's own /diagnostics pattern and the window of each kissing episode."""
     with h5py.File(h5file, "r") as h5:
         diag = h5["diagnostics"]
-        starts = diag["episodes/start"][()]
-        ends = diag["episodes/end"][()]
+        starts, ends = episodes(diag)
         pattern = diag.attrs["pattern"].decode()
     rows: list[tuple[str, object]] = [("case1 pattern", pattern)]
     for k, (a, b) in enumerate(zip(starts, ends, strict=True), start=1):
