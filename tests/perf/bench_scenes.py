@@ -11,6 +11,8 @@ maximum per scene and rank count. Standard library only.
 
     tests/perf/bench_scenes.py                         # build/dktlbm, 3 repeats, 1 and 2 ranks
     tests/perf/bench_scenes.py --steps 3000 --repeats 5
+    tests/perf/bench_scenes.py --ranks 1 --scenes input/cylinder.nml \
+        'input/cylinder.nml --set particles.count=0'      # a scene with its own --set options
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
 import shutil
 import statistics
 import subprocess
@@ -44,14 +47,16 @@ def main() -> int:
     results: dict[tuple[str, int], list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for repeat in range(args.repeats):
-            for scene in args.scenes:
+            for index, scene in enumerate(args.scenes):
+                path, *options = shlex.split(scene)
                 for ranks in args.ranks:
                     # series every 10 steps and fields at the end: output is part of the run
                     cmd = [
-                        args.mpiexec, "-n", str(ranks), args.exe, str(ROOT / scene),
+                        args.mpiexec, "-n", str(ranks), args.exe, str(ROOT / path),
+                        *options,
                         "--set", f"run.steps={args.steps}",
                         "--set", "run.progress_every=0",
-                        "--set", f"output.dir={tmp}/{Path(scene).stem}-{ranks}-{repeat}",
+                        "--set", f"output.dir={tmp}/{Path(path).stem}-{index}-{ranks}-{repeat}",
                     ]
                     proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
                     match = PERFORMANCE.search(proc.stdout)
@@ -59,10 +64,11 @@ def main() -> int:
                         print(f"run failed: {' '.join(cmd)}\n{proc.stderr}", file=sys.stderr)
                         return 1
                     results.setdefault((scene, ranks), []).append(float(match.group(1)))
-    print(f"{'scene':<24} {'ranks':>5} {'median':>8} {'min':>8} {'max':>8}  MLUPS, "
+    width = max(24, *(len(scene) for scene in args.scenes))
+    print(f"{'scene':<{width}} {'ranks':>5} {'median':>8} {'min':>8} {'max':>8}  MLUPS, "
           f"{args.steps} steps, {args.repeats} runs")
     for (scene, ranks), values in results.items():
-        print(f"{scene:<24} {ranks:>5} {statistics.median(values):8.1f} {min(values):8.1f} "
+        print(f"{scene:<{width}} {ranks:>5} {statistics.median(values):8.1f} {min(values):8.1f} "
               f"{max(values):8.1f}")
     return 0
 

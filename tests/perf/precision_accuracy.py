@@ -72,11 +72,18 @@ def timed_run(nml: Path, ranks: int, sets: list[str], out: Path) -> tuple[float,
 def row_single(out: Path, precision: str, ranks: int) -> list[tuple[str, object, float, str]]:
     sets = ["lbm.dx=0.02", "run.t_end=0.75", f"lbm.precision={precision}", *NO_FIELDS]
     wall, cmd = timed_run(INPUT / "single.nml", ranks, sets, out)
-    s = series(out / "single.h5")
+    return [(q, v, wall, cmd) for q, v in answers_single(out / "single.h5")]
+
+
+def answers_single(h5file: Path, t_max: float = np.inf) -> list[tuple[str, object]]:
+    """Re_max = rho_p D |U|max / mu of input/single.nml's disk up to t_max, and when it is
+    reached."""
+    s = series(h5file)
+    s = {name: values[s["t"] <= t_max] for name, values in s.items()}
     speed = np.hypot(s["u"][:, 0], s["v"][:, 0])
     return [
-        ("single disk Re_max (ref. 17.3)", 1.25 * 0.25 * speed.max() / 0.1, wall, cmd),
-        ("single disk t(Re_max) [s]", float(s["t"][np.argmax(speed)]), wall, cmd),
+        ("single disk Re_max (ref. 17.3)", 1.25 * 0.25 * speed.max() / 0.1),
+        ("single disk t(Re_max) [s]", float(s["t"][np.argmax(speed)])),
     ]
 
 
@@ -84,21 +91,32 @@ def row_case0_box(out: Path, precision: str, ranks: int) -> list[tuple[str, obje
     wall, cmd = timed_run(
         INPUT / "case0_box.nml", ranks, [f"lbm.precision={precision}", *NO_FIELDS], out
     )
-    with h5py.File(out / "case0_box.h5", "r") as h5:
+    return [(q, v, wall, cmd) for q, v in answers_case0_box(out / "case0_box.h5")]
+
+
+def episodes(diag: h5py.Group) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end times of the kissing episodes (none: the run writes no episodes group)."""
+    if "episodes" not in diag:
+        return np.empty(0), np.empty(0)
+    return diag["episodes/start"][()], diag["episodes/end"][()]
+
+
+def answers_case0_box(h5file: Path) -> list[tuple[str, object]]:
+    """The gap at 0.5 s, the first kissing episode, the first passing and the run's pattern."""
+    with h5py.File(h5file, "r") as h5:
         t = h5["particles/t"][()]
         y = h5["particles/y"][()]
         diag = h5["diagnostics"]
         dr = diag["dr"][()]
-        starts = diag["episodes/start"][()]
-        ends = diag["episodes/end"][()]
+        starts, ends = episodes(diag)
         pattern = diag.attrs["pattern"].decode()
     passing = t[np.nonzero(y[:, 0] < y[:, 1])[0]]
     return [
-        ("case0_box gap at 0.5 s [cm]", float(np.interp(0.5, t, dr)), wall, cmd),
-        ("case0_box kissing begins [s]", float(starts[0]) if starts.size else "none", wall, cmd),
-        ("case0_box kissing ends [s]", float(ends[0]) if ends.size else "none", wall, cmd),
-        ("case0_box passing [s]", float(passing[0]) if passing.size else "none", wall, cmd),
-        ("case0_box pattern", pattern, wall, cmd),
+        ("case0_box gap at 0.5 s [cm]", float(np.interp(0.5, t, dr))),
+        ("case0_box kissing begins [s]", float(starts[0]) if starts.size else "none"),
+        ("case0_box kissing ends [s]", float(ends[0]) if ends.size else "none"),
+        ("case0_box passing [s]", float(passing[0]) if passing.size else "none"),
+        ("case0_box pattern", pattern),
     ]
 
 
@@ -106,15 +124,19 @@ def row_case1(out: Path, precision: str, ranks: int) -> list[tuple[str, object, 
     wall, cmd = timed_run(
         INPUT / "case1.nml", ranks, [f"lbm.precision={precision}", *NO_FIELDS], out
     )
-    with h5py.File(out / "case1.h5", "r") as h5:
+    return [(q, v, wall, cmd) for q, v in answers_case1(out / "case1.h5")]
+
+
+def answers_case1(h5file: Path) -> list[tuple[str, object]]:
+    """The run's own /diagnostics pattern and the window of each kissing episode."""
+    with h5py.File(h5file, "r") as h5:
         diag = h5["diagnostics"]
-        starts = diag["episodes/start"][()]
-        ends = diag["episodes/end"][()]
+        starts, ends = episodes(diag)
         pattern = diag.attrs["pattern"].decode()
-    rows: list[tuple[str, object, float, str]] = [("case1 pattern", pattern, wall, cmd)]
+    rows: list[tuple[str, object]] = [("case1 pattern", pattern)]
     for k, (a, b) in enumerate(zip(starts, ends, strict=True), start=1):
-        rows.append((f"case1 kissing {k} begins [s]", float(a), wall, cmd))
-        rows.append((f"case1 kissing {k} ends [s]", float(b), wall, cmd))
+        rows.append((f"case1 kissing {k} begins [s]", float(a)))
+        rows.append((f"case1 kissing {k} ends [s]", float(b)))
     return rows
 
 
