@@ -148,8 +148,11 @@ contains
     failure = ''
     do k = 1, size(u)
       speed = hypot(u(k), v(k))
-      ! written so that a NaN speed fails as well
-      if (speed <= limit) cycle
+      ! a NaN or infinite speed fails as well (tested first: an ordered comparison with NaN
+      ! raises the invalid-operation exception the checked build traps)
+      if (ieee_is_finite(speed)) then
+        if (speed <= limit) cycle
+      end if
       write (msg, '(a,i0,a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(es12.4e3,a),a)') &
         'particle ', k, ' moves ', speed, ' lattice spacings per step, above '// &
         'run.particle_speed_limit = ', limit, ', at step ', step, ' (t = ', t, &
