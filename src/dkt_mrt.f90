@@ -150,6 +150,7 @@ contains
     integer, intent(in) :: nx, nyl, j1, j2
     logical, intent(in), optional :: keep, below_kept, above_kept
     real(wp) :: sh(0:8)
+    real(wp), allocatable :: spare(:, :)
     integer :: j, nxp, k
     if (j2 < j1) return
     sh = 0.0_wp
@@ -204,7 +205,10 @@ contains
       else
         call rows_in_place_d(coll, dst%d, ws, nxp, nx, nyl, j)
       end if
-      ws%below = ws%saved
+      ! old row j's populations 2, 5, 6 are the next row's below: swap the buffers, not copy
+      call move_alloc(ws%below, spare)
+      call move_alloc(ws%saved, ws%below)
+      call move_alloc(spare, ws%saved)
     end do
     if (opt(above_kept)) then
       if (dst%single) then

@@ -4,7 +4,7 @@
 !> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
 module dkt_simulation
   use mpi_f08, only: MPI_Comm
-  use dkt_kinds, only: wp, sp, pi, cs2
+  use dkt_kinds, only: wp, pi, cs2
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
   use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
                         largest_diameter
@@ -298,15 +298,13 @@ contains
   subroutine fluid_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    associate (nyl => sim%dom%nyl)
-      call halo_start(sim%dom, sim%f)
-      call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-      call sweep_part(sim, 1)
-      call halo_finish(sim%dom, sim%f)
-      call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-      call sweep_part(sim, 2)
-      call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
-    end associate
+    call halo_start(sim%dom, sim%f)
+    call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+    call sweep_part(sim, 1)
+    call halo_finish(sim%dom, sim%f)
+    call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+    call sweep_part(sim, 2)
+    call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
   end subroutine fluid_step
 
   !> Stream and collide the rows that do not read the halo rows (part 1, while the halo
