@@ -70,14 +70,6 @@ def parse_args() -> argparse.Namespace:
         "--steps", type=int, default=0, help="time steps per run (default: the scene's run.steps)"
     )
     parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="GROUP.KEY=VALUE",
-        help="extra dktlbm --set override (repeatable)",
-    )
-    parser.add_argument(
         "--tiny",
         nargs="+",
         default=TINY,

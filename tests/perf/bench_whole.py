@@ -58,14 +58,6 @@ def parse_args() -> argparse.Namespace:
         help="a case, scene file and its options as one string, relative to the repository "
         "root or absolute (repeatable; default: the two above)",
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="GROUP.KEY=VALUE",
-        help="an option for every case, after its own (repeatable), e.g. run.t_end=0.05",
-    )
     benchlib.add_common_arguments(parser)
     parser.add_argument(
         "--ranks", type=int, nargs="+", default=[2], help="rank counts (default: 2)"

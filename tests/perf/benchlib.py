@@ -65,7 +65,17 @@ class Layout:
 
 
 def add_common_arguments(parser: argparse.ArgumentParser) -> None:
-    """--exe, --mpiexec, --precisions and --streaming, as every dktlbm benchmark takes them."""
+    """--exe, --mpiexec, --precisions, --streaming and --set, as every dktlbm benchmark takes
+    them."""
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="GROUP.KEY=VALUE",
+        help="a dktlbm --set option for every run, after the scene's own (repeatable), "
+        "e.g. run.t_end=0.05",
+    )
     parser.add_argument(
         "--exe",
         default=os.environ.get("DKTLBM_EXE", str(ROOT / "build/dktlbm")),
