@@ -55,6 +55,7 @@ import os
 import re
 import shlex
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -76,6 +77,8 @@ from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env  # noqa: E402
 from test_particles import REFDATA, series  # noqa: E402
 
 TIME = Path("/usr/bin/time")
+# reads the answers, (quantity, value) pairs, of a finished run directory
+Answer = Callable[[Path], list[tuple[str, object]]]
 SCENES = ("single", "case0_box", "case1", "uhlmann")
 # the issue's grid; 'scene' keeps the scene's own value of the key
 AXES = {
@@ -151,14 +154,16 @@ def answers(scene: str, out: Path) -> list[tuple[str, object]]:
     ]
 
 
-def answers_or_none(scene: str, out: Path, status: str) -> list[tuple[str, object]]:
+def answers_or_none(
+    scene: str, out: Path, status: str, answer: Answer | None = None
+) -> list[tuple[str, object]]:
     """The answers; a run a guard stopped before its diagnostics were written answers 'none'."""
     try:
-        return answers(scene, out)
+        return answer(out) if answer else answers(scene, out)
     except (KeyError, IndexError):
         if status == "finished":
             raise
-        return [(quantity, "none") for quantity in MEASURED[scene]]
+        return [(quantity, "none") for quantity in MEASURED.get(scene, [])]
 
 
 def config_name(config: dict[str, str]) -> str:
@@ -207,12 +212,21 @@ def memory_line(log: str) -> str:
 
 
 def run_one(
-    scene: str, config: dict[str, str], out: Path, ranks: int, repeats: int = 1
+    scene: str,
+    config: dict[str, str],
+    out: Path,
+    ranks: int,
+    repeats: int = 1,
+    *,
+    scene_sets: list[str] | None = None,
+    answer: Answer | None = None,
 ) -> dict | None:
-    """Run `scene` in `config` into `out` until it has `repeats` timed runs, unless another
-    sweep claimed it; return its record. The answers are the first run's; the wall time is the
-    fastest run's (the others only time it again: a shared machine slows a run, never speeds
-    it up), the memory the largest."""
+    """Run `scene` (input/<scene>.nml) in `config` into `out` until it has `repeats` timed
+    runs, unless another sweep claimed it; return its record. The answers are the first run's;
+    the wall time is the fastest run's (the others only time it again: a shared machine slows a
+    run, never speeds it up), the memory the largest. `scene_sets` (default SCENE_SETS[scene])
+    are the scene's own --set values, `answer` (default `answers`) reads the answers of a run
+    directory."""
     result = out / "result.json"
     old = json.loads(result.read_text()) if result.exists() else None
     if old and len(old["walls"]) >= repeats:
@@ -227,7 +241,8 @@ def run_one(
     try:
         os.write(lock, f"{os.getpid()}\n".encode())
         sets = [f"{k}={v}" for k, v in config.items() if v != "scene"]
-        sets += [*SCENE_SETS[scene], "output.field_interval=0", "output.overwrite=.true."]
+        own = SCENE_SETS[scene] if scene_sets is None else scene_sets
+        sets += [*own, "output.field_interval=0", "output.overwrite=.true."]
         sets.append(f"output.dir={out}")
         rss = out / "rank_peak_rss_kib.txt"
         rss.unlink(missing_ok=True)
@@ -274,7 +289,7 @@ def run_one(
             "allocated_mib": allocated_mib(memory_line((out / f"{scene}.log").read_text())),
             "memory_line": memory_line((out / f"{scene}.log").read_text()),
             "command": shown,
-            "answers": answers_or_none(scene, out, status),
+            "answers": answers_or_none(scene, out, status, answer),
         }
         result.write_text(json.dumps(record, indent=1) + "\n")
         return record
