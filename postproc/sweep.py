@@ -6,12 +6,21 @@ of a pair scene, and the regime map of their DKT patterns.
     sweep.py run --out DIR [--jobs N] [--ranks R] [--force]      # here, N runs at a time
     sweep.py slurm --out DIR [--ntasks R] [--time HH:MM:SS] [--partition P]  # a job array
     sweep.py collect --out DIR                                   # regime.csv, regime.png
+    sweep.py bisect BASE.nml --key gamma|dh --lo A --hi B --tol T --out DIR [--jobs N]
+                                                                 # where the pattern changes
 
 `plan` writes DIR/runs.csv (id, gamma, dh, dir, command): one run per combination of the
 values, `dktlbm BASE --set pair.gamma=G --set pair.dh=H [--set ...] --set
 output.dir=DIR/<id>`. LIST is comma-separated values or inclusive ranges start:stop:step,
 e.g. `--gamma 1:3:0.5` or `--dh 1,2,4:10:2`. `run` and `slurm` run that plan; `collect`
 reads each run's pattern (pattern.py) into DIR/regime.csv and draws DIR/regime.png.
+
+`bisect` narrows [A, B] to a bracket of width <= T around the value of pair.gamma or pair.dh
+where the pattern changes, N runs per step; its runs are rows of DIR/runs.csv like a plan's.
+A pattern counts only when it is settled: the episodes that start by t_end/2 give the same
+pattern as all of them (else the point runs again with t_end doubled, up to --max-t-end); a run
+that ended by window_escape is settled only when the pair was separating for good (the lower
+particle falling faster). `collect` reports both in regime.csv.
 """
 
 from __future__ import annotations
@@ -36,7 +45,12 @@ ROOT = Path(__file__).resolve().parents[1]
 RUNS_CSV = "runs.csv"
 REGIME_CSV = "regime.csv"
 COLUMNS = ("id", "gamma", "dh", "dir", "command")
-REGIME_COLUMNS = ("gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir")
+REGIME_COLUMNS = ("gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir", "status",
+                  "t_end", "settled", "left_window")
+BISECT_CSV = "bisect.csv"
+BISECT_STATE = "bisect.json"
+BISECT_COLUMNS = ("row", "value", "pattern", "episodes", "first_kiss_t", "t_end", "end_t",
+                  "status", "settled", "wall_s", "dir")
 # marker and colour of each pattern on the regime map
 STYLE = {
     "repeated": ("o", "tab:red"),
@@ -344,6 +358,346 @@ def slurm_script(plan: list[PlannedRun], out: Path, ntasks: int, time_limit: str
     )
 
 
+# ---------------------------------------------------------------- settled patterns
+
+
+@dataclass
+class Verdict:
+    """What one run file says about its pattern, and whether that pattern is final.
+
+    `half` is the pattern of the episodes that start by t_end/2, `pattern` that of all of
+    them; a finished run is settled when the two agree (its pattern would survive doubling
+    t_end as far as this run can tell). A run that ended by window_escape is settled when the
+    pair was separating for good at its end (see escape_is_final). Anything else (a guard, an
+    error, a signal, a run still going, no file) is not a pattern at all: `status` says what."""
+
+    status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing', 'failed'
+    pattern: str = ""
+    half: str = ""
+    episodes: int = 0
+    first_kiss: float | None = None
+    t_end: float = math.nan  # s, the run's planned end (steps x dt)
+    end_t: float = math.nan  # s, its last sample
+    settled: bool = False
+    why: str = ""
+
+    @property
+    def classified(self) -> bool:
+        return self.status in ("finished", "window_escape")
+
+
+def escape_is_final(pair) -> tuple[bool, str]:
+    """A run ended by window_escape: final when, at its last sample, the pair is not kissing,
+    the gap D_r is growing and the lower particle sinks faster than the upper one, so the
+    upper one cannot catch up again (the gap is then about window.above D_1)."""
+    run = pair.run
+    y, v = run.series["y"][-1, :2], run.series["v"][-1, :2]
+    lower, upper = (0, 1) if y[0] < y[1] else (1, 0)
+    back = max(0, pair.dr.size - 4)
+    growing = pair.dr.size > 1 and pair.dr[-1] > pair.dr[back]
+    faster = v[lower] < v[upper]
+    if pair.open_episode:
+        return False, "the pair was still kissing when it left the window"
+    if not (growing and faster):
+        return False, (f"at the escape the lower particle sank at {-v[lower]:.4g} cm/s, the "
+                       f"upper at {-v[upper]:.4g} cm/s and the gap was "
+                       f"{'growing' if growing else 'not growing'}: they may meet again")
+    return True, "the pair separated for good (the lower particle sinks faster)"
+
+
+def verdict(h5: Path) -> Verdict:
+    """The Verdict of the run file `h5` (see Verdict)."""
+    from dktread import open_h5, pattern_name, stop_reason
+
+    status = run_status(h5)
+    if status == "missing":
+        return Verdict("missing", why="no run file")
+    try:
+        with open_h5(h5) as f:
+            reason = stop_reason(f) or status
+    except RunFileError as exc:
+        return Verdict("failed", why=str(exc))
+    if status != "finished":
+        return Verdict(reason if reason != "finished" else "failed",
+                       why=f"the run did not finish (stop_reason: {reason})")
+    try:
+        pair = pair_of(open_run(h5, need_particles=2))
+    except RunFileError as exc:
+        return Verdict("failed", why=str(exc))
+    run = pair.run
+    end_t = float(pair.t[-1])
+    t_end = run.steps * run.dt if run.steps > 0 and math.isfinite(run.dt) else end_t
+    starts = [e.start for e in pair.episodes]
+    half = pattern_name(sum(1 for s in starts if s <= 0.5 * t_end * (1 + 1e-12)))
+    v = Verdict(reason if reason == "window_escape" else "finished", pair.pattern, half,
+                len(starts), starts[0] if starts else None, t_end, end_t)
+    if v.status == "window_escape":
+        v.settled, v.why = escape_is_final(pair)
+        v.why = f"a particle left the window at t = {end_t:.4g} s; " + v.why
+    else:
+        v.settled = half == pair.pattern
+        v.why = (f"{half} by t_end/2 = {0.5 * t_end:.4g} s, {pair.pattern} by t_end = "
+                 f"{t_end:.4g} s")
+    return v
+
+
+def wall_seconds(r: PlannedRun) -> float | None:
+    """The run's computing time: the sum of the `performance: ... in X s` lines of its log
+    (a resumed run appends one per part); None without them."""
+    log = r.dir / f"{r.h5.stem}.log"
+    try:
+        text = log.read_text(errors="replace")
+    except OSError:
+        return None
+    import re
+
+    found = re.findall(r"^performance:.* in +([0-9.]+) s on", text, flags=re.M)
+    return sum(float(x) for x in found) if found else None
+
+
+# ---------------------------------------------------------------- bisect
+
+
+def _value(x: float) -> float:
+    """A value as the runs see it: 8 significant digits (the run id and the --set text)."""
+    return float(f"{x:.8g}")
+
+
+def _scene_setting(base: Path, sets: list[str], dotted: str) -> str | None:
+    """The text of group.key (dotted) as the run will see it: the last --set of it, else the
+    scene file's; None when neither gives it."""
+    group, _, key = dotted.partition(".")
+    given = [s.partition("=")[2] for s in sets if s.partition("=")[0].strip().lower() == dotted]
+    if given:
+        return given[-1].strip()
+    try:
+        found = parse_namelist(base.read_text()).get(group, {}).get(key, [])
+    except (OSError, UnicodeDecodeError):
+        return None
+    return found[0] if found else None
+
+
+@dataclass
+class BisectSettings:
+    base: Path
+    key: str  # 'gamma' or 'dh'
+    lo: float
+    hi: float
+    tol: float
+    sets: list[str]
+    out: Path
+    exe: str
+    t_end: float  # s, the runs' first end time
+    max_t_end: float  # s
+
+    def identity(self) -> dict[str, object]:
+        """What a rerun in the same directory must repeat to reuse its runs."""
+        import hashlib
+
+        return {"base": str(self.base), "base_sha256": hashlib.sha256(
+            self.base.read_bytes()).hexdigest(), "key": self.key, "lo": self.lo,
+            "hi": self.hi, "tol": self.tol, "sets": self.sets}
+
+
+class Bisector:
+    """The bisection over pair.<key>: `launch(todo, every_run)` runs the runs `todo` (all of
+    them before it returns); `every_run` is the whole run set so far, DIR/runs.csv."""
+
+    def __init__(self, cfg: BisectSettings, jobs: int, launch) -> None:
+        self.cfg, self.jobs, self.launch = cfg, max(1, jobs), launch
+        self.runs: dict[str, PlannedRun] = {}
+        self.rows: list[dict[str, str]] = []
+        self.launches = 0
+
+    def planned(self, value: float, t_end: float) -> PlannedRun:
+        c = self.cfg
+        run_id = f"{'g' if c.key == 'gamma' else 'h'}{value:.8g}"  # as plan names them
+        run_id += f"_t{t_end:g}" if t_end != c.t_end else ""
+        args = [c.exe, str(c.base), "--set", f"pair.{c.key}={value:.8g}"]
+        for s in c.sets:
+            args += ["--set", s]
+        args += ["--set", f"run.t_end={t_end:g}", "--set", f"output.dir={c.out / run_id}"]
+        g = value if c.key == "gamma" else _base_value(c.base, c.sets, "gamma")
+        h = value if c.key == "dh" else _base_value(c.base, c.sets, "dh")
+        return PlannedRun(run_id, g, h, c.out / run_id, shlex.join(args))
+
+    def _record(self, value: float, r: PlannedRun, v: Verdict) -> None:
+        wall = wall_seconds(r)
+        self.rows.append({
+            "row": "run", "value": f"{value:.8g}", "pattern": v.pattern or v.status,
+            "episodes": str(v.episodes) if v.classified else "",
+            "first_kiss_t": "" if v.first_kiss is None else f"{v.first_kiss:.6g}",
+            "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
+            "end_t": f"{v.end_t:.6g}" if math.isfinite(v.end_t) else "",
+            "status": v.status, "settled": "yes" if v.settled else "no",
+            "wall_s": "" if wall is None else f"{wall:.3g}", "dir": str(r.dir)})
+
+    def settle(self, values: list[float]) -> dict[float, tuple[Verdict, PlannedRun]]:
+        """Run each value until its pattern is settled: at the first t_end, then with t_end
+        doubled while it is not, up to max_t_end. SweepError for a run that failed, one that
+        left the window before its pattern was final, and one not settled by max_t_end."""
+        c = self.cfg
+        target = {v: c.t_end for v in values}
+        done: dict[float, tuple[Verdict, PlannedRun]] = {}
+        while target:
+            runs = {v: self.planned(v, t) for v, t in target.items()}
+            for r in runs.values():
+                self.runs.setdefault(r.id, r)
+            todo = [r for r in runs.values() if run_status(r.h5) != "finished"]
+            for r in runs.values():
+                if r not in todo:
+                    print(f"reuse  {r.id}: {r.h5} is finished", flush=True)
+            if todo:
+                self.launches += 1
+                self.launch(todo, list(self.runs.values()))
+            for value, r in runs.items():
+                v = verdict(r.h5)
+                self._record(value, r, v)
+                name = f"{c.key} = {value:.8g}"
+                if not v.classified:
+                    raise SweepError(
+                        f"run {r.dir} ({name}, t_end = {target[value]:g} s) gave no pattern: "
+                        f"{v.status}: {v.why}; see {r.dir / 'run.log'}")
+                if v.settled:
+                    print(f"  {name}: {v.pattern} ({v.episodes} episode"
+                          f"{'s' if v.episodes != 1 else ''}), settled at t_end = "
+                          f"{target[value]:g} s: {v.why}", flush=True)
+                    done[value] = (v, r)
+                    del target[value]
+                elif v.status == "window_escape":
+                    raise SweepError(
+                        f"run {r.dir} ({name}): {v.why}; its pattern ({v.pattern} so far) is "
+                        f"not final and a longer run cannot tell more: make the window hold "
+                        f"both particles longer (--set window.above=..., in D_1)")
+                elif 2 * target[value] > c.max_t_end * (1 + 1e-12):
+                    raise SweepError(
+                        f"run {r.dir} ({name}): the pattern is not settled at t_end = "
+                        f"{target[value]:g} s ({v.why}) and doubling t_end would pass "
+                        f"--max-t-end {c.max_t_end:g} s")
+                else:
+                    print(f"  {name}: not settled at t_end = {target[value]:g} s ({v.why}); "
+                          f"running it to {2 * target[value]:g} s", flush=True)
+                    target[value] *= 2
+        return done
+
+    def search(self) -> tuple[tuple[float, str], tuple[float, str]]:
+        """The bracket (value, pattern) at each end, hi - lo <= tol. With jobs N, each step
+        runs up to N points spaced evenly inside the bracket (no more than needed to reach
+        tol) and keeps the first sub-interval, from lo, whose ends differ."""
+        c = self.cfg
+        first = self.settle([c.lo, c.hi])
+        lo, hi = (c.lo, first[c.lo][0].pattern), (c.hi, first[c.hi][0].pattern)
+        if lo[1] == hi[1]:
+            raise SweepError(
+                f"{c.key} = {c.lo:.8g} and {c.key} = {c.hi:.8g} give the same pattern, "
+                f"{lo[1]} and {hi[1]}: --lo and --hi must bracket a change of pattern")
+        while hi[0] - lo[0] > c.tol * (1 + 1e-9):
+            width = hi[0] - lo[0]
+            n = min(self.jobs, max(1, math.ceil(width / c.tol - 1e-9) - 1))
+            xs = sorted({_value(lo[0] + k * width / (n + 1)) for k in range(1, n + 1)}
+                        - {lo[0], hi[0]})
+            if not xs:
+                raise SweepError(f"--tol {c.tol:g} is finer than 8 significant digits of "
+                                 f"{c.key} resolve")
+            got = self.settle(xs)
+            seq = [lo] + [(x, got[x][0].pattern) for x in xs] + [hi]
+            lo, hi = next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
+        return lo, hi
+
+
+def bisect_state(cfg: BisectSettings) -> None:
+    """Refuse a directory that holds a bisection with other settings; record ours."""
+    import json
+
+    path = cfg.out / BISECT_STATE
+    ours = cfg.identity()
+    if path.is_file():
+        try:
+            theirs = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise SweepError(f"{path}: unreadable ({exc}); remove it or use another --out") \
+                from None
+        changed = [k for k in ours if theirs.get(k) != ours[k]]
+        if changed:
+            what = "; ".join(f"{k}: {theirs.get(k)!r} there, {ours[k]!r} now" for k in changed
+                             if k != "base_sha256") or "the base scene's text changed"
+            raise SweepError(f"{cfg.out} holds a bisection with other settings ({what}); "
+                             f"its runs do not answer this one: use another --out, or remove "
+                             f"{path} to reuse the runs anyway")
+    elif (cfg.out / RUNS_CSV).exists():
+        raise SweepError(f"{cfg.out} holds a sweep plan, not a bisection: use another --out")
+    cfg.out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(ours, indent=1) + "\n")
+
+
+def write_bisect(b: Bisector, lo: tuple[float, str], hi: tuple[float, str]) -> Path:
+    """DIR/bisect.csv: every run, then the bracket's rows 'lo' and 'hi' (each the settled
+    run of that value); DIR/runs.csv: every run, as a plan."""
+    ends = []
+    for name, (value, pattern) in (("lo", lo), ("hi", hi)):
+        settled = [r for r in b.rows if r["value"] == f"{value:.8g}" and r["settled"] == "yes"]
+        ends.append({**settled[-1], "row": name, "pattern": pattern})
+    path = b.cfg.out / BISECT_CSV
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=BISECT_COLUMNS)
+        w.writeheader()
+        w.writerows(b.rows + ends)
+    write_plan(list(b.runs.values()), b.cfg.out)
+    return path
+
+
+def slurm_launcher(out: Path, ntasks: int, time_limit: str, partition: str | None,
+                   setup: list[str]):
+    """Each call writes DIR/runs.csv (every run so far) and DIR/sweep.slurm (slurm_script), and
+    submits the rows of `todo` as one job array, `sbatch --wait --array=i,j,...`, which
+    returns when the array has ended."""
+
+    def launch(todo: list[PlannedRun], every: list[PlannedRun]) -> None:
+        write_plan(every, out)
+        script = out / "sweep.slurm"
+        script.write_text(slurm_script(every, out, ntasks, time_limit, partition, None, None,
+                                       setup, "dkt-bisect"))
+        script.chmod(0o755)
+        index = {r.id: k for k, r in enumerate(every)}
+        array = ",".join(str(index[r.id]) for r in todo)
+        command = [os.environ.get("SBATCH") or "sbatch", "--wait", f"--array={array}",
+                   str(script)]
+        print(f"submit {shlex.join(command)}", flush=True)
+        try:
+            proc = subprocess.run(command, capture_output=True, text=True)
+        except OSError as exc:
+            raise SweepError(f"cannot run {command[0]}: {exc}") from None
+        sys.stdout.write(proc.stdout)
+        if "Submitted batch job" not in proc.stdout:
+            raise SweepError(f"{shlex.join(command)} failed (exit status {proc.returncode}): "
+                             f"{proc.stderr.strip()}")
+
+    return launch
+
+
+def local_launcher(jobs: int, ranks: int):
+    def launch(todo: list[PlannedRun], every: list[PlannedRun]) -> None:
+        write_plan(every, todo[0].dir.parent)
+        run_plan(todo, jobs, ranks, force=False)
+
+    return launch
+
+
+def bisect(cfg: BisectSettings, jobs: int, launch) -> tuple[Bisector, str]:
+    """Run the bisection; write DIR/bisect.csv and DIR/runs.csv; return the summary line."""
+    bisect_state(cfg)
+    b = Bisector(cfg, jobs, launch)
+    try:
+        lo, hi = b.search()
+    finally:
+        if b.runs:
+            write_plan(list(b.runs.values()), cfg.out)
+    write_bisect(b, lo, hi)
+    n = len(b.rows)
+    return b, (f"{cfg.key} threshold between {lo[0]:.8g} ({lo[1]}) and {hi[0]:.8g} ({hi[1]}), "
+               f"{n} run{'s' if n != 1 else ''}")
+
+
 # ---------------------------------------------------------------- collect
 
 
@@ -372,8 +726,24 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
             "episodes": episodes,
             "first_kiss_t": first,
             "dir": str(r.dir),
+            **_settling_columns(r, pattern),
         })
     return rows
+
+
+def _settling_columns(r: PlannedRun, pattern: str) -> dict[str, str]:
+    """regime.csv's last columns: status (finished, window_escape, or why the run stopped),
+    t_end (s, the run's planned end), settled (yes/no: the bisect rule, Verdict), left_window
+    (yes when a particle left the window: the run ended early and only the particle still in
+    it has late-time values)."""
+    if pattern == "missing":
+        return {"status": "missing", "t_end": "", "settled": "", "left_window": ""}
+    v = verdict(r.h5)
+    classified = v.classified and pattern in ("repeated", "once", "never")
+    return {"status": v.status,
+            "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
+            "settled": ("yes" if v.settled else "no") if classified else "",
+            "left_window": "yes" if v.status == "window_escape" else "no"}
 
 
 def write_regime(rows: list[dict[str, str]], out: Path, pdf: bool) -> list[Path]:
@@ -487,7 +857,80 @@ def parser() -> argparse.ArgumentParser:
         "run file) and draw DIR/regime.png: D_h/D_1 across, gamma up, one marker per pattern.")
     with_out(coll)
     coll.add_argument("--pdf", action="store_true", help="also write DIR/regime.pdf")
+
+    bis = sub.add_parser(
+        "bisect", help="find where the pattern changes between two values of gamma or dh",
+        description="Narrow [--lo, --hi] to a bracket no wider than --tol around the value of "
+        "pair.gamma or pair.dh where the DKT pattern changes. Each step runs up to --jobs "
+        "points inside the bracket (here, or as one Slurm job array with --slurm). A point "
+        "counts only with a settled pattern: the episodes that start by t_end/2 give the same "
+        "pattern as all of them; otherwise it runs again with run.t_end doubled, up to "
+        "--max-t-end. A run ended by window_escape counts when the pair was separating for "
+        "good (the lower particle sinking faster), a run stopped by a guard or an error stops "
+        "the bisection. Every run is DIR/<id> and a row of DIR/runs.csv (collect and plot as a "
+        "sweep); DIR/bisect.csv lists every run and the final bracket. Rerunning the same "
+        "command reuses the finished runs; other settings for the same DIR are refused.")
+    bis.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
+    bis.add_argument("--key", choices=("gamma", "dh"), required=True,
+                     help="pair.gamma (D_1/D_2) or pair.dh (D_h/D_1)")
+    bis.add_argument("--lo", type=float, required=True, metavar="A", help="one end")
+    bis.add_argument("--hi", type=float, required=True, metavar="B", help="the other end")
+    bis.add_argument("--tol", type=float, required=True, metavar="T",
+                     help="stop when the bracket is at most T wide")
+    bis.add_argument("--set", dest="sets", action="append", default=[], type=_set_arg,
+                     metavar="group.key=value", help="passed to every run (repeatable)")
+    bis.add_argument("--max-t-end", type=float, metavar="S",
+                     help="the longest run.t_end (s) a point may need to settle (default: 8 "
+                     "times the first)")
+    bis.add_argument("--exe", default=None, help="the dktlbm executable (as for plan)")
+    with_out(bis)
+    bis.add_argument("--jobs", type=int, default=1, metavar="N",
+                     help="runs at the same time, and points per step (default 1)")
+    bis.add_argument("--ranks", type=int, default=1, metavar="R",
+                     help="MPI ranks per run here (default 1)")
+    bis.add_argument("--slurm", action="store_true",
+                     help="submit each step as a Slurm job array (sbatch --wait) instead")
+    bis.add_argument("--ntasks", type=int, default=4, metavar="R",
+                     help="with --slurm: MPI ranks per run (default 4)")
+    bis.add_argument("--time", default="24:00:00", metavar="HH:MM:SS",
+                     help="with --slurm: time limit per run (default 24:00:00)")
+    bis.add_argument("--partition", help="with --slurm: Slurm partition")
+    bis.add_argument("--setup", action="append", default=[], metavar="LINE",
+                     help="with --slurm: a shell line run before each run (repeatable)")
     return p
+
+
+def _bisect_command(args: argparse.Namespace) -> int:
+    if not args.base.is_file():
+        raise SweepError(f"{args.base}: no such scene file")
+    lo, hi = sorted((_value(args.lo), _value(args.hi)))
+    if not (0 < lo < hi) or not (math.isfinite(args.tol) and args.tol > 0):
+        raise SweepError(f"--lo and --hi must be two different positive values and --tol "
+                         f"positive (got {args.lo:g}, {args.hi:g}, {args.tol:g})")
+    if args.jobs < 1 or args.ranks < 1 or args.ntasks < 1:
+        raise SweepError("--jobs, --ranks and --ntasks must be at least 1")
+    base = args.base.resolve()
+    text = _scene_setting(base, args.sets, "run.t_end")
+    try:
+        t_end = float(text.lower().replace("d", "e")) if text else math.nan
+    except ValueError:
+        t_end = math.nan
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise SweepError(f"{base}: &run t_end is not given (or not a positive number: "
+                         f"{text!r}); the settling rule needs it: --set run.t_end=SECONDS")
+    max_t_end = args.max_t_end if args.max_t_end is not None else 8 * t_end
+    if max_t_end < t_end:
+        raise SweepError(f"--max-t-end {max_t_end:g} is below run.t_end = {t_end:g} s")
+    cfg = BisectSettings(base, args.key, lo, hi, args.tol, list(args.sets), args.out.resolve(),
+                         args.exe or default_exe(), t_end, max_t_end)
+    if args.slurm:
+        launch = slurm_launcher(cfg.out, args.ntasks, args.time, args.partition, args.setup)
+    else:
+        launch = local_launcher(args.jobs, args.ranks)
+    b, summary = bisect(cfg, args.jobs, launch)
+    print(f"wrote {cfg.out / BISECT_CSV}, {cfg.out / RUNS_CSV}")
+    print(summary)
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -505,6 +948,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     out: Path = args.out
+    if args.command == "bisect":
+        return _bisect_command(args)
     if args.command == "plan":
         plan = make_plan(args.base, args.gamma, args.dh, args.sets, out,
                          args.exe or default_exe())

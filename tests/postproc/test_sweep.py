@@ -162,7 +162,9 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
     """collect: one regime.csv row per planned run with the pattern read from the run file
     (from /diagnostics when written; computed from /particles for a finished file without
     it), the number of episodes and the first kissing time; 'failed' for a file that is not
-    a finished run, 'missing' for a run without a file; regime.png is drawn."""
+    a finished run, 'missing' for a run without a file; after the original columns, the
+    status, t_end, whether the pattern is settled (episodes by t_end/2 give the same
+    pattern) and whether a particle left the window; regime.png is drawn."""
     out = tmp_path / "sw"
     assert sweep_cli("plan", base, "--gamma", "1:3:1", "--dh", "2,4", "--out",
                      out).returncode == 0
@@ -188,11 +190,17 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
     proc = sweep_cli("collect", "--out", out)
     assert proc.returncode == 0, proc.stderr
     rows = read_csv(out / "regime.csv")
-    assert list(rows[0]) == ["gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir"]
+    assert list(rows[0])[:6] == ["gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir"]
     assert [(r["gamma"], r["dh"]) for r in rows] == [(p["gamma"], p["dh"]) for p in plan]
     assert [r["pattern"] for r in rows] == ["repeated", "once", "never", "once", "failed",
                                             "missing"]
     assert [r["episodes"] for r in rows] == ["2", "1", "0", "1", "", ""]
+    # the columns after `dir`: the runs end at 3 s, so the second kiss of the first (1.94 s)
+    # comes after t_end/2: its 'repeated' is not settled; no run left a window
+    assert [r["status"] for r in rows] == ["finished"] * 4 + ["failed", "missing"]
+    assert [r["settled"] for r in rows] == ["no", "yes", "yes", "yes", "", ""]
+    assert [r["left_window"] for r in rows] == ["no"] * 5 + [""]
+    assert [r["t_end"] for r in rows[:4]] == ["3"] * 4
     assert float(rows[0]["first_kiss_t"]) == pytest.approx(0.96)
     assert rows[2]["first_kiss_t"] == ""
     first = syn.first_sample_at_or_after(syn.crossing(k["once"], 0, syn.ENTER))

@@ -1,0 +1,344 @@
+"""postproc/sweep.py bisect: the threshold search over pair.gamma or pair.dh.
+
+Most tests run the search against a stand-in program (bisect_fake.py) whose pattern is a known
+step function of the value (threshold 1.37; near it the second kiss comes late, so the pattern
+at t_end = 4 s is not settled and needs t_end = 8 s), called in-process, through `sweep.py
+bisect` with a stand-in mpiexec, and through Slurm stand-ins (sbatch --wait running the array
+tasks under bash, srun executing its arguments). One test bisects a real coarse scene. Each
+test's docstring says what it proves."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shlex
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import bisect_fake as fake
+import pytest
+
+import sweep
+from dkt_run import EXE, ROOT, mpi_env
+
+SWEEP = ROOT / "postproc" / "sweep.py"
+FAKE = Path(__file__).resolve().parent / "bisect_fake.py"
+T_END = 4.0
+SCENE = """! a pair scene for the bisection tests (run only by the stand-in)
+&pair
+  gamma = 2.0, dh = 2.5
+/
+&run
+  t_end = 4.0
+/
+"""
+
+
+@pytest.fixture
+def base(tmp_path: Path) -> Path:
+    path = tmp_path / "pairscene.nml"
+    path.write_text(SCENE)
+    return path
+
+
+def settings(
+    base: Path,
+    out: Path,
+    lo: float = 1.0,
+    hi: float = 2.0,
+    tol: float = 0.01,
+    max_t_end: float = 32.0,
+    sets: list[str] | None = None,
+) -> sweep.BisectSettings:
+    return sweep.BisectSettings(
+        base.resolve(), "gamma", lo, hi, tol, sets or [], out.resolve(), str(FAKE), T_END, max_t_end
+    )
+
+
+class FakeLaunch:
+    """Runs the stand-in in-process; records each call as [(value, t_end), ...]."""
+
+    def __init__(self) -> None:
+        self.calls: list[list[tuple[float, float]]] = []
+
+    def __call__(self, todo: list[sweep.PlannedRun], every: list[sweep.PlannedRun]) -> None:
+        call = []
+        for r in todo:
+            s = fake.settings(r.args)
+            call.append((float(s["pair.gamma"]), float(s["run.t_end"])))
+            fake.main(r.args[1:])
+        self.calls.append(call)
+
+
+def expected_points(width: float, tol: float, jobs: int) -> list[int]:
+    """Points per step of a multisection of `width` down to `tol` with up to `jobs` points a
+    step, none more than needed: n = min(jobs, ceil(width/tol) - 1), width / (n + 1)."""
+    steps = []
+    while width > tol:
+        n = min(jobs, math.ceil(width / tol) - 1)
+        steps.append(n)
+        width /= n + 1
+    return steps
+
+
+def late(value: float) -> bool:
+    return 0 < fake.THRESHOLD - value < fake.LATE_BAND
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_search_brackets_the_threshold_and_extends_unsettled_points(
+    tmp_path: Path, base: Path, jobs: int
+) -> None:
+    """The bracket contains the stand-in's threshold 1.37, is at most --tol wide, with
+    'repeated' below and 'once' above; lo = 1 and hi = 2 run first in one call (hi ends by
+    window_escape, separating, which settles it); each step runs min(jobs, needed) new points
+    (with --jobs 2 fewer steps than with --jobs 1); every point in the late band is run at
+    t_end 4 (not settled) and again at 8 (settled), every other point once at 4."""
+    launch = FakeLaunch()
+    b, summary = sweep.bisect(settings(base, tmp_path / "b"), jobs, launch)
+    rows = [r for r in csv.DictReader((tmp_path / "b" / "bisect.csv").open())]
+    lo, hi = [r for r in rows if r["row"] == "lo"], [r for r in rows if r["row"] == "hi"]
+    assert len(lo) == len(hi) == 1
+    a, z = float(lo[0]["value"]), float(hi[0]["value"])
+    assert a < fake.THRESHOLD <= z and z - a <= 0.01
+    assert (lo[0]["pattern"], hi[0]["pattern"]) == ("repeated", "once")
+    assert summary.startswith(
+        f"gamma threshold between {lo[0]['value']} (repeated) and {hi[0]['value']} (once), "
+    )
+
+    fresh = [c for c in launch.calls if all(t == T_END for _, t in c)]
+    assert sorted(fresh[0]) == [(1.0, T_END), (2.0, T_END)]
+    assert [len(c) for c in fresh[1:]] == expected_points(1.0, 0.01, jobs)
+    assert len(fresh) - 1 == (7 if jobs == 1 else 5)
+
+    runs = [r for r in rows if r["row"] == "run"]
+    values = {float(r["value"]) for r in runs}
+    assert sum(1 for v in values if late(v)) >= 1, "the test must exercise an extension"
+    for v in values:
+        mine = sorted((float(r["t_end"]), r["settled"]) for r in runs if float(r["value"]) == v)
+        assert mine == ([(4.0, "no"), (8.0, "yes")] if late(v) else [(4.0, "yes")]), v
+    assert summary.endswith(f", {len(runs)} runs")
+    escaped = [r for r in runs if r["value"] == "2"]
+    assert escaped[0]["status"] == "window_escape" and escaped[0]["settled"] == "yes"
+
+
+def test_rerun_reuses_runs_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
+    """The same bisection again in the same directory runs nothing and gives the same bracket;
+    another --tol, another --set or an edited base scene for that directory is refused with a
+    message naming what changed, before any run."""
+    out = tmp_path / "b"
+    first = FakeLaunch()
+    _, summary = sweep.bisect(settings(base, out), 1, first)
+    again = FakeLaunch()
+    _, summary2 = sweep.bisect(settings(base, out), 1, again)
+    assert again.calls == [] and summary2 == summary
+    for changed, word in (
+        (settings(base, out, tol=0.02), "tol"),
+        (settings(base, out, sets=["lbm.tau=0.6"]), "sets"),
+    ):
+        with pytest.raises(sweep.SweepError, match=word):
+            sweep.bisect(changed, 1, again)
+    base.write_text(SCENE.replace("2.5", "3.0"))
+    with pytest.raises(sweep.SweepError, match="base"):
+        sweep.bisect(settings(base, out), 1, again)
+    assert again.calls == []
+
+
+def test_refusals_name_the_problem(tmp_path: Path, base: Path) -> None:
+    """Ends with the same pattern are refused naming both patterns (after the two runs only);
+    a point not settled within --max-t-end, a run that left the window while the upper
+    particle still gained on the lower one, and a run stopped by a guard each stop the
+    search with a message naming the run's directory and the reason."""
+    launch = FakeLaunch()
+    with pytest.raises(sweep.SweepError, match="same pattern, once and once"):
+        sweep.bisect(settings(base, tmp_path / "same", lo=1.5, hi=1.8), 1, launch)
+    assert len(launch.calls) == 1 and len(launch.calls[0]) == 2
+    cases = [
+        (dict(lo=1.3, hi=1.5, max_t_end=4.0), "g1.3.*--max-t-end 4"),
+        (dict(lo=1.0, hi=6.0), "g6.*left the window.*window.above"),
+        (dict(lo=1.0, hi=12.0), "g12.*guard"),
+    ]
+    for k, (kw, pattern) in enumerate(cases):
+        with pytest.raises(sweep.SweepError, match=pattern):
+            sweep.bisect(settings(base, tmp_path / f"c{k}", **kw), 1, FakeLaunch())
+
+
+def stand_in(path: Path, text: str) -> Path:
+    path.write_text(text)
+    path.chmod(path.stat().st_mode | stat.S_IEXEC)
+    return path
+
+
+def sweep_cli(
+    *args: str | Path, env: dict[str, str], timeout: float = 120.0
+) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(SWEEP), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**env, "MPLBACKEND": "Agg"},
+    )
+
+
+def fake_bisect(base: Path, out: Path) -> list[str | Path]:
+    """The command line of the stand-in's bisection over gamma in [1, 2] to 0.05, 2 jobs."""
+    return ["bisect", base, "--key", "gamma", "--lo", "1", "--hi", "2", "--tol", "0.05",
+            "--exe", FAKE, "--out", out, "--jobs", "2"]  # fmt: skip
+
+
+def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
+    """`sweep.py bisect` here (runs through run_plan with a stand-in mpiexec): exit 0, the
+    summary line last, bisect.csv with a row per run and the bracket, runs.csv holding every
+    run with the plan's command form; `collect` on the same directory adds status, t_end,
+    settled and left_window after the regime.csv columns, agreeing with bisect.csv. A second
+    identical command reruns nothing."""
+    mpiexec = stand_in(
+        tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
+    )
+    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    out = tmp_path / "b"
+    command = fake_bisect(base, out)
+    proc = sweep_cli(*command, env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    last = proc.stdout.strip().splitlines()[-1]
+    assert last.startswith("gamma threshold between ") and "(repeated) and" in last
+    bis = list(csv.DictReader((out / "bisect.csv").open()))
+    runs = [r for r in bis if r["row"] == "run"]
+    plan = list(csv.DictReader((out / "runs.csv").open()))
+    assert {Path(r["dir"]).name for r in runs} == {r["id"] for r in plan}
+    for r in plan:
+        args = shlex.split(r["command"])
+        assert args[:3] == [str(FAKE), str(base.resolve()), "--set"]
+        assert args[-2:] == ["--set", f"output.dir={out.resolve() / r['id']}"]
+    proc = sweep_cli("collect", "--out", out, env=env)
+    assert proc.returncode == 0, proc.stderr
+    regime = {Path(r["dir"]).name: r for r in csv.DictReader((out / "regime.csv").open())}
+    assert list(next(iter(regime.values())))[:6] == list(sweep.REGIME_COLUMNS[:6])
+    for r in runs:
+        g = regime[Path(r["dir"]).name]
+        assert (g["pattern"], g["settled"], g["status"]) == (
+            r["pattern"],
+            r["settled"],
+            r["status"],
+        )
+        assert g["left_window"] == ("yes" if r["status"] == "window_escape" else "no")
+    proc = sweep_cli(*command, env=env)
+    assert proc.returncode == 0 and "start" not in proc.stdout and "reuse" in proc.stdout
+    proc = sweep_cli(*command[:-2], "--tol", "0.1", env=env)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "tol" in proc.stderr
+
+
+FAKE_SBATCH = """#!{python}
+import json, os, re, subprocess, sys
+from pathlib import Path
+
+args = sys.argv[1:]
+with open(os.environ["FAKE_LOG"], "a") as f:
+    f.write(json.dumps(args) + "\\n")
+array = [a for a in args if a.startswith("--array=")][0].partition("=")[2]
+print("Submitted batch job 1001", flush=True)
+status = 0
+for task in array.split(","):
+    env = dict(os.environ, SLURM_ARRAY_TASK_ID=task, SLURM_ARRAY_JOB_ID="1001")
+    status |= subprocess.run(["bash", args[-1]], env=env).returncode
+sys.exit(status if "--wait" in args else 0)
+"""
+
+
+def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -> None:
+    """--slurm: each step is one `sbatch --wait --array=<rows of this step>` of DIR/sweep.slurm
+    (written by slurm_script with --ntasks, --time, --partition), whose tasks run their rows'
+    commands through srun; the bracket is the one the local mode finds, and runs.csv rows
+    2.. are the points in the order they were submitted."""
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    log = tmp_path / "sbatch.jsonl"
+    stand_in(bindir / "sbatch", FAKE_SBATCH.format(python=sys.executable))
+    stand_in(bindir / "srun", '#!/bin/bash\nexec "$@"\n')
+    env = {**os.environ, "PATH": f"{bindir}:{os.environ['PATH']}", "FAKE_LOG": str(log)}
+    out = tmp_path / "s"
+    proc = sweep_cli(
+        *fake_bisect(base, out),
+        "--slurm",
+        "--ntasks",
+        "3",
+        "--time",
+        "00:10:00",
+        "--partition",
+        "short",
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    calls = [json.loads(line) for line in log.read_text().splitlines()]
+    plan = list(csv.DictReader((out / "runs.csv").open()))
+    submitted = []
+    for call in calls:
+        assert call[0] == "--wait" and call[-1] == str(out.resolve() / "sweep.slurm")
+        submitted += [int(k) for k in call[1].removeprefix("--array=").split(",")]
+    assert submitted == list(range(len(plan)))
+    script = (out / "sweep.slurm").read_text()
+    for option in ("--ntasks=3", "--time=00:10:00", "--partition=short"):
+        assert f"#SBATCH {option}" in script
+    local = FakeLaunch()
+    _, summary = sweep.bisect(settings(base, tmp_path / "l", tol=0.05), 2, local)
+    assert proc.stdout.strip().splitlines()[-1] == summary
+    assert len(calls) == len(local.calls)
+
+
+def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
+    """A real bisection: input/case2.nml at 8 spacings per smaller diameter, no fields,
+    across D_h/D_1 in [2, 2.5] (kissing once at 2, never at 2.5) to 0.25 with 2 runs at a
+    time: the two ends of the bracket have the two different patterns (each settled, as
+    bisect.csv says), it is at most 0.25 wide, and pattern.py reads the same pattern from
+    each end's run file."""
+    out = tmp_path / "real"
+    t0 = time.monotonic()
+    proc = sweep_cli(
+        "bisect",
+        ROOT / "input" / "case2.nml",
+        "--key",
+        "dh",
+        "--lo",
+        "2",
+        "--hi",
+        "2.5",
+        "--tol",
+        "0.25",
+        "--set",
+        "lbm.cells_per_diameter=8",
+        "--set",
+        "output.field_interval=0",
+        "--exe",
+        EXE,
+        "--out",
+        out,
+        "--jobs",
+        "2",
+        "--ranks",
+        "1",
+        env=mpi_env(),
+        timeout=280,
+    )
+    print(f"real bisection: {time.monotonic() - t0:.1f} s")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = list(csv.DictReader((out / "bisect.csv").open()))
+    (lo,), (hi,) = [r for r in rows if r["row"] == "lo"], [r for r in rows if r["row"] == "hi"]
+    assert lo["pattern"] != hi["pattern"]
+    assert {lo["pattern"], hi["pattern"]} <= {"repeated", "once", "never"}
+    assert float(hi["value"]) - float(lo["value"]) <= 0.25
+    assert lo["settled"] == hi["settled"] == "yes"
+    for end in (lo, hi):
+        h5 = Path(end["dir"]) / "case2.h5"
+        report = subprocess.run(
+            [sys.executable, str(ROOT / "postproc" / "pattern.py"), str(h5), "--json"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert json.loads(report.stdout)["pattern"] == end["pattern"]
