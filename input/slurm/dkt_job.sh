@@ -171,11 +171,13 @@ dkt_inherit() {
 
 # Run `launch` + dktlbm + args in the background and wait for it. SIGUSR1 to this shell is
 # passed on once the run has its handlers (it creates the file DKTLBM_READY_FILE then); one
-# that comes earlier is held until then, so that it stops the run rather than kills it.
+# that comes earlier is held until then, so that it stops the run rather than kills it (one
+# that came before this function, noted as early_usr1=1 by the script's first trap, too).
 # Sets status (the run's exit status) and stop_asked (1 after SIGUSR1).
 dkt_run() {
-  local ready=$OUTDIR/.ready.${SLURM_JOB_ID:-$$} held=0 tick
-  stop_asked=0
+  local ready=$OUTDIR/.ready.${SLURM_JOB_ID:-$$} held=${early_usr1:-0} tick
+  stop_asked=$held
+  if [ "$held" -eq 1 ]; then say "SIGUSR1 came before the run started: held until it has"; fi
   pid=''
   rm -f "$ready"
   forward_usr1() {
