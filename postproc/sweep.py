@@ -57,6 +57,7 @@ STYLE = {
     "once": ("s", "tab:orange"),
     "never": ("^", "tab:blue"),
     "missing": ("x", "tab:gray"),
+    "stopped": ("P", "tab:purple"),
     "failed": ("X", "black"),
 }
 
@@ -293,51 +294,56 @@ def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
 
 # ---------------------------------------------------------------- Slurm
 
+JOB_LIB = ROOT / "input" / "slurm" / "dkt_job.sh"
 SLURM_TEMPLATE = """#!/bin/bash
-# Slurm job array of the sweep in {out}: task k runs row k+1 of runs.csv (after the header).
-# Submit from anywhere: sbatch {script}
+# Slurm job array of a sweep: task k runs row k of runs.csv (after the header) in <dir>/<id>,
+# the directory that holds this script and runs.csv (it may be moved). Submit it with
+#   sbatch {script}                      # or: cd <dir> && sbatch sweep.slurm
+# sbatch options (--ntasks=2 --time=30 ...) hold for every resubmission too. Each task skips a
+# finished run, resumes an interrupted one from its checkpoint, appends to <dir>/<id>/run.log,
+# and submits itself again when it stopped with a checkpoint (at most MAX_RESUBMITS times).
+# Stop the whole sweep: scancel --name={job_name}. Exit status per task: 0 = finished, or
+# stopped and resubmitted; 1 = stopped unfinished and not resubmitted; 2 = a setting is wrong;
+# else dktlbm failed. `sweep.py collect` shows an unfinished run with a checkpoint as stopped.
 #SBATCH --job-name={job_name}
 #SBATCH --array=0-{last}{throttle}
 #SBATCH --ntasks={ntasks}
 #SBATCH --time={time}
-#SBATCH --output={out}/slurm-%A_%a.out
-{extra}# --signal=B:USR1@120: Slurm sends SIGUSR1 to this batch shell 120 s before the time limit;
-# the trap below passes it on to the run, which writes a checkpoint and exits 0. Resume a task
-# with its command plus --restart "$(cat <dir>/<name>.checkpoint)"; input/slurm/sweep_array.slurm
-# does that by itself (it resubmits each unfinished task from its last checkpoint).
+#SBATCH --output=slurm-%x-%A_%a.out
+{extra}# Slurm sends SIGUSR1 to this batch shell 120 s before the time limit (checked every 30 s);
+# it is passed on to the run once the run has its handlers; the run writes a checkpoint and
+# stops, and the task submits itself again.
 #SBATCH --signal=B:USR1@120
+trap 'early_usr1=1' USR1  # noted until the run has started (dkt_run); keep it first
 set -u
-{setup}RUNS={runs}
-OUT={out}
-task=${{SLURM_ARRAY_TASK_ID:?submit this script with sbatch (a job array)}}
-row=$(python3 -c '
-import csv, sys
-rows = list(csv.DictReader(open(sys.argv[1], newline="")))
-k = int(sys.argv[2])
-print(rows[k]["id"])
-print(rows[k]["command"])
-' "$RUNS" "$task") || {{ echo "sweep: no row $task in $RUNS" >&2; exit 2; }}
-id=$(printf '%s\\n' "$row" | sed -n 1p)
-command=$(printf '%s\\n' "$row" | sed -n 2p)
-mkdir -p "$OUT/$id"
-log="$OUT/$id/run.log"
-eval "set -- $command"
-echo "# srun $*" > "$log"
-trap 'echo "sweep: SIGUSR1 from Slurm: checkpoint and stop" >> "$log"; kill -USR1 "$pid"' USR1
-srun "$@" >> "$log" 2>&1 &
-pid=$!
-while true; do
-  wait "$pid"
-  status=$?
-  kill -0 "$pid" 2>/dev/null || break
-done
-exit "$status"
+{setup}MAX_RESUBMITS=${{MAX_RESUBMITS:-{max_resubmits}}}
+RESUBMIT=${{RESUBMIT:-0}}
+DKTLBM=${{DKTLBM:-}}          # empty = the executable in the plan's commands
+SUBMIT_SCRIPT=${{SUBMIT_SCRIPT:-}}
+# DKT_LAUNCHER=srun|mpirun|auto, DKT_SRUN_MPI, MPIRUN: how the ranks start (input/slurm/README.md)
+
+# ---- the functions shared with input/slurm/run_one.slurm and sweep_array.slurm (dkt_job.sh)
+{library}
+# ---- the sweep directory: SWEEP_DIR, else the directory of the submitted script, else the
+# ---- submit directory, else where this script was written
+sweep=${{SWEEP_DIR:-}}
+if [ -z "$sweep" ]; then
+  for dir in "$(scontrol show job "${{SLURM_JOB_ID:-none}}" 2>/dev/null |
+    sed -n 's/^[[:space:]]*Command=\\(.*\\)\\/[^/]*$/\\1/p')" \\
+    "${{SLURM_SUBMIT_DIR:-$PWD}}" {written}; do
+    if [ -f "$dir/runs.csv" ]; then sweep=$dir; break; fi
+  done
+fi
+dkt_sweep_task "${{sweep:-.}}/runs.csv"
+exit $?
 """
 
 
 def slurm_script(plan: list[PlannedRun], out: Path, ntasks: int, time_limit: str,
                  partition: str | None, account: str | None, max_parallel: int | None,
-                 setup: list[str], job_name: str) -> str:
+                 setup: list[str], job_name: str, max_resubmits: int = 10) -> str:
+    """DIR/sweep.slurm: the job array of the plan, with input/slurm/dkt_job.sh written in (so
+    the sweep directory needs no source tree) and the sweep directory found at run time."""
     out = out.resolve()
     extra = ""
     if partition:
@@ -345,7 +351,6 @@ def slurm_script(plan: list[PlannedRun], out: Path, ntasks: int, time_limit: str
     if account:
         extra += f"#SBATCH --account={account}\n"
     return SLURM_TEMPLATE.format(
-        out=shlex.quote(str(out)),
         script=shlex.quote(str(out / "sweep.slurm")),
         job_name=job_name,
         last=len(plan) - 1,
@@ -354,7 +359,9 @@ def slurm_script(plan: list[PlannedRun], out: Path, ntasks: int, time_limit: str
         time=time_limit,
         extra=extra,
         setup="".join(f"{line}\n" for line in setup),
-        runs=shlex.quote(str(out / RUNS_CSV)),
+        max_resubmits=max_resubmits,
+        library=JOB_LIB.read_text(),
+        written=shlex.quote(str(out)),
     )
 
 
@@ -703,11 +710,14 @@ def bisect(cfg: BisectSettings, jobs: int, launch) -> tuple[Bisector, str]:
 
 def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
     """One regime.csv row per planned run: its pattern, number of kissing episodes and the
-    start of the first one (s); pattern 'missing' without a run file, 'failed' when the file
-    is not a finished run."""
+    start of the first one (s); pattern 'missing' without a run file, 'stopped' when the run is
+    not finished but has a checkpoint to resume from (<name>.checkpoint: stopped at a time
+    limit, or still running), 'failed' when the file is not a finished run otherwise."""
     rows = []
     for r in plan:
         status = run_status(r.h5)
+        if status == "failed" and r.h5.with_suffix(".checkpoint").is_file():
+            status = "stopped"
         gamma, dh = r.gamma, r.dh
         pattern, episodes, first = status, "", ""
         if status == "finished":

@@ -3,7 +3,8 @@
 program dktlbm
   use iso_fortran_env, only: output_unit
   use mpi_f08, only: MPI_Init, MPI_Finalize, MPI_COMM_WORLD, MPI_Comm_rank, MPI_Bcast, &
-                     MPI_INTEGER, MPI_CHARACTER
+                     MPI_INTEGER, MPI_CHARACTER, MPI_Barrier
+  use dkt_signals, only: signals_install
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, config_to_namelist, print_help, &
@@ -22,8 +23,12 @@ program dktlbm
   character(len=:), allocatable :: err, text, warnings
   integer :: rank
 
+  ! SIGTERM and SIGUSR1 are noted from the very start, so that a signal sent while the run is
+  ! still setting up stops it cleanly at its first steps instead of killing it
+  call signals_install()
   call MPI_Init()
   call MPI_Comm_rank(MPI_COMM_WORLD, rank)
+  call announce_ready()
 
   call parse_command_line(cli, err)
   if (len(err) > 0) call fatal_all(err)
@@ -62,6 +67,21 @@ program dktlbm
   call MPI_Finalize()
 
 contains
+
+  !> When the environment names a file in DKTLBM_READY_FILE, rank 0 creates it once every rank
+  !! notes the signals: a batch script that holds a signal until then loses none.
+  subroutine announce_ready()
+    integer :: n, status, unit
+    character(len=:), allocatable :: path
+    call get_environment_variable('DKTLBM_READY_FILE', length=n, status=status)
+    if (status /= 0 .or. n == 0) return
+    call MPI_Barrier(MPI_COMM_WORLD)
+    if (rank /= 0) return
+    allocate (character(len=n) :: path)
+    call get_environment_variable('DKTLBM_READY_FILE', path)
+    open (newunit=unit, file=path, status='replace', action='write', iostat=status)
+    if (status == 0) close (unit)
+  end subroutine announce_ready
 
   !> Rank 0 reads the namelist file and sends its text to every rank, so all ranks validate
   !! the same input and stop together on an error.

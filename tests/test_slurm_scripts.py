@@ -74,9 +74,13 @@ def log():
 
 out.mkdir(parents=True, exist_ok=True)
 print("stand-in dktlbm:", mode, flush=True)
-if mode in ("wait", "wait-die"):
-    signal.signal(signal.SIGUSR1, lambda signum, frame: caught.append(int(signum)))
+if mode in ("wait", "wait-die", "wait-late"):
     (logs / "started").touch()
+    if mode == "wait-late":
+        time.sleep(2)  # still setting up: a SIGUSR1 now would kill this process
+    signal.signal(signal.SIGUSR1, lambda signum, frame: caught.append(int(signum)))
+    if os.environ.get("DKTLBM_READY_FILE"):
+        Path(os.environ["DKTLBM_READY_FILE"]).touch()
     deadline = time.monotonic() + 30
     while not caught and time.monotonic() < deadline:
         time.sleep(0.02)
@@ -85,7 +89,7 @@ if mode in ("wait", "wait-die"):
         sys.exit(4)
 if mode == "finish":
     (out / f"{{name}}.finished").touch()
-elif mode in ("checkpoint", "fail", "wait", "wait-die"):
+elif mode in ("checkpoint", "fail", "wait", "wait-die", "wait-late"):
     checkpoint()
 log()
 if mode == "fail":
@@ -101,9 +105,17 @@ FAKE_SRUN = """#!{python}
 import json, os, sys
 from pathlib import Path
 
+if sys.argv[1:] == ["--mpi=list"]:
+    print("MPI plugin types are...")
+    print(os.environ.get("FAKE_MPI_LIST", "none"))
+    sys.exit(0)
+n = 1
+while sys.argv[n].startswith("-"):
+    n += 1
+options, args = sys.argv[1:n], sys.argv[n:]
 with (Path(os.environ["FAKE_LOG"]) / "srun.jsonl").open("a") as f:
-    f.write(json.dumps({{"argv": sys.argv[1:]}}) + "\\n")
-os.execvp(sys.argv[1], sys.argv[1:])
+    f.write(json.dumps({{"argv": args, "options": options}}) + "\\n")
+os.execvp(args[0], args)
 """
 
 FAKE_SBATCH = """#!{python}
@@ -377,12 +389,15 @@ def test_failed_run_exits_nonzero_and_is_not_resubmitted(case: Case) -> None:
     assert case.log("sbatch") == []
 
 
-@pytest.mark.parametrize("mode", ["wait", "wait-die"])
+@pytest.mark.parametrize("mode", ["wait", "wait-die", "wait-late"])
 def test_sigusr1_is_forwarded_and_the_run_resubmitted(case: Case, mode: str) -> None:
     """SIGUSR1 to the batch shell (what --signal=B:USR1 does) does not end the script: it is
     passed on to the run through srun, the run checkpoints, and the job resubmits itself and
     exits 0. This holds too when the run then ends with a non-zero status (killed by the
-    signal): after the signal that is not a failure, as the checkpoint is new."""
+    signal): after the signal that is not a failure, as the checkpoint is new. `wait-late`:
+    the signal comes while the run is still setting up, 2 s before it has its handler (which
+    the signal would kill it): the script holds it until the run says it is ready
+    (DKTLBM_READY_FILE) and the run still catches it once."""
     proc = subprocess.Popen(["bash", str(case.script)], cwd=case.cwd,
                             env={**case.env, "FAKE_MODE": mode}, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)

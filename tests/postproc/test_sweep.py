@@ -119,8 +119,10 @@ def test_plan_refuses_a_missing_scene_and_bad_lists(tmp_path: Path, base: Path) 
 def test_slurm_array_runs_row_k_with_srun(tmp_path: Path, base: Path) -> None:
     """slurm: sweep.slurm is a job array 0..n-1 with the requested ranks, time and partition
     and the --signal=B:USR1@120 option with its reason; run by bash as array task k (with a
-    stand-in srun that records its arguments) it runs exactly row k's command through srun,
-    logging to <out>/<id>/run.log; a task number beyond the plan fails."""
+    stand-in srun that records its arguments) it runs exactly row k's command through srun
+    (with the MPI plugin DKT_SRUN_MPI and the executable DKTLBM), appending to
+    <out>/<id>/run.log; as the stand-in leaves neither a finished run nor a checkpoint, the
+    task exits 1 and submits nothing; a task number beyond the plan fails."""
     out = tmp_path / "sw"
     assert sweep_cli("plan", base, "--gamma", "1,2,3", "--dh", "2,4", "--set",
                      "particles.x=0.9,1.1", "--out", out, "--exe", "/x/dktlbm").returncode == 0
@@ -145,12 +147,22 @@ def test_slurm_array_runs_row_k_with_srun(tmp_path: Path, base: Path) -> None:
                     'echo "stand-in srun ran"\n')
     srun.chmod(srun.stat().st_mode | stat.S_IEXEC)
     rows = read_csv(out / "runs.csv")
-    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}", "SLURM_ARRAY_TASK_ID": "4"}
+    exe = fake / "dktlbm"
+    exe.write_text("#!/bin/sh\n")
+    exe.chmod(0o755)
+    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}", "SLURM_ARRAY_TASK_ID": "4",
+           "DKT_LAUNCHER": "srun", "DKT_SRUN_MPI": "pmix", "DKTLBM": str(exe)}
+    for key in [k for k in env if k.startswith("SLURM_") and k != "SLURM_ARRAY_TASK_ID"]:
+        del env[key]
     proc = subprocess.run(["bash", str(out / "sweep.slurm")], capture_output=True, text=True,
                           env=env, timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert record.read_text().splitlines() == shlex.split(rows[4]["command"])
-    assert "stand-in srun ran" in (out / rows[4]["id"] / "run.log").read_text()
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "without a checkpoint" in proc.stdout
+    row_dir = out / rows[4]["id"]
+    assert record.read_text().splitlines() == [
+        "--mpi=pmix", str(exe), *shlex.split(rows[4]["command"])[1:],
+        "--set", f"output.dir={row_dir}"]
+    assert "stand-in srun ran" in (row_dir / "run.log").read_text()
 
     env["SLURM_ARRAY_TASK_ID"] = "6"
     proc = subprocess.run(["bash", str(out / "sweep.slurm")], capture_output=True, text=True,

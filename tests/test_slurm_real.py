@@ -1,0 +1,268 @@
+"""input/slurm/ and `sweep.py slurm` against a real Slurm (tools/slurm-local.sh start): the jobs
+are submitted with sbatch, signalled by Slurm, resubmitted by the scripts and run by srun or
+mpirun as the launcher detection chooses (the local cluster has MpiDefault=none, so a plain
+srun cannot start the Open MPI build). Skipped when no Slurm answers `sinfo`.
+
+Short runs of input/case0.nml at 10 spacings per diameter; a few minutes in all.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from dkt_run import EXE, INPUT, ROOT, mpi_env, run
+from test_restart import LONG_SETS, assert_same_output
+
+SWEEP_PY = ROOT / "postproc" / "sweep.py"
+
+
+def slurm_up() -> str:
+    """Empty when a Slurm node answers, else why not."""
+    if shutil.which("sinfo") is None:
+        return "no sinfo on PATH (start one with: bash tools/slurm-local.sh start)"
+    proc = subprocess.run(["sinfo", "-h", "-o", "%T"], capture_output=True, text=True, timeout=30)
+    if proc.returncode != 0 or not re.search(r"idle|mix|alloc", proc.stdout):
+        return f"sinfo does not reach a Slurm with a usable node: {proc.stderr.strip()}"
+    return ""
+
+
+pytestmark = pytest.mark.skipif(bool(slurm_up()), reason=slurm_up() or "Slurm is up")
+
+
+def job_env(**extra: str) -> dict[str, str]:
+    """The submitting shell's environment: no SLURM_* of an enclosing job."""
+    env = {k: v for k, v in {**os.environ, **mpi_env()}.items() if not k.startswith("SLURM_")}
+    env.update(extra)
+    return env
+
+
+def sbatch(args: list[str], cwd: Path, env: dict[str, str]) -> str:
+    proc = subprocess.run(
+        ["sbatch", "--parsable", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout.strip().split(";")[0]
+
+
+def squeue(name: str) -> list[tuple[str, str]]:
+    proc = subprocess.run(
+        ["squeue", "-h", "-n", name, "-o", "%i %T"], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 0, proc.stderr
+    return [tuple(line.split()) for line in proc.stdout.splitlines() if line.strip()]
+
+
+def wait_running(job: str, name: str, timeout: float = 120) -> None:
+    deadline = time.monotonic() + timeout
+    while (job, "RUNNING") not in squeue(name):
+        assert time.monotonic() < deadline, f"job {job} did not start: {squeue(name)}"
+        time.sleep(0.2)
+
+
+def wait_for(pattern: Path, timeout: float = 120) -> None:
+    """Until a file matching `pattern` exists: the batch shell has started (and set its trap;
+    a signal to a job whose shell has not started yet is lost by Slurm itself)."""
+    deadline = time.monotonic() + timeout
+    while not list(pattern.parent.glob(pattern.name)):
+        assert time.monotonic() < deadline, f"no {pattern} after {timeout} s"
+        time.sleep(0.05)
+
+
+def wait_gone(name: str, timeout: float = 400) -> None:
+    """Until no job of that name is pending or running (a chain included); a job left
+    pending for a reason other than its dependency fails the test (and is cancelled)."""
+    deadline = time.monotonic() + timeout
+    while jobs := squeue(name):
+        if time.monotonic() > deadline:
+            subprocess.run(["scancel", "--name", name], timeout=60)
+            detail = subprocess.run(
+                ["squeue", "-n", name, "-o", "%i %T %r"], capture_output=True, text=True
+            ).stdout
+            raise AssertionError(f"jobs {name} still queued after {timeout} s:\n{detail}")
+        del jobs
+        time.sleep(1)
+
+
+def job_field(job: str, field: str) -> str:
+    text = subprocess.run(
+        ["scontrol", "show", "job", job], capture_output=True, text=True, timeout=60
+    ).stdout
+    found = re.search(rf"(?:^|\s){re.escape(field)}=(\S*)", text)
+    assert found, f"no {field} for job {job}:\n{text}"
+    return found.group(1)
+
+
+def test_run_one_chain_cut_by_a_signal_equals_a_direct_run(tmp_path: Path) -> None:
+    """run_one.slurm submitted with sbatch --ntasks=2 --time=5 (the script says 4 tasks, 24 h)
+    is sent SIGUSR1 by Slurm (scancel --batch, the same delivery as --signal=B:USR1 before the
+    limit) as soon as its shell runs, likely before dktlbm has its handlers: the run writes a
+    checkpoint, the job submits its follow-up with the same 2 tasks and 5 min (not the
+    script's 4, which this 2-CPU node could never start), and the chain finishes with an
+    output bitwise equal to one direct run. The job messages land in the output directory,
+    not in the submit directory, and every job id of the chain is in OUTDIR/jobs."""
+    name = "dkt-real-one"
+    out = tmp_path / "chain"
+    submit_dir = tmp_path / "submit"
+    submit_dir.mkdir()
+    env = job_env(
+        SCENE=str(INPUT / "case0.nml"),
+        OUTDIR=str(out),
+        DKTLBM=str(EXE),
+        EXTRA=" ".join(f"--set {s}" for s in LONG_SETS),
+        MAX_RESUBMITS="3",
+        SBATCH_SIGNAL="B:USR1@10",
+    )
+    first = sbatch(
+        [
+            "--ntasks=2",
+            "--time=5",
+            f"--job-name={name}",
+            str(ROOT / "input" / "slurm" / "run_one.slurm"),
+        ],
+        submit_dir,
+        env,
+    )
+    wait_running(first, name)
+    wait_for(out / "jobs")
+    subprocess.run(["scancel", "--batch", "--signal=USR1", first], check=True, timeout=60)
+    wait_gone(name)
+
+    jobs = (out / "jobs").read_text().split()
+    logs = "".join(p.read_text() for p in sorted(out.glob("slurm-*.out")))
+    assert jobs[0] == first and len(jobs) >= 2, logs
+    assert (out / "case0.finished").exists(), logs
+    assert "SIGUSR1" in logs and "--restart" in logs, logs
+    follow = jobs[1]
+    assert job_field(follow, "NumTasks") == "2", logs
+    assert job_field(follow, "TimeLimit") == "00:05:00", logs
+    assert job_field(first, "ExitCode") == "0:0" and job_field(follow, "ExitCode") == "0:0"
+    assert list(submit_dir.iterdir()) == [], "job output left in the submit directory"
+
+    direct = tmp_path / "direct"
+    run("case0.nml", 2, LONG_SETS, direct, timeout=600)
+    assert_same_output(direct, out)
+
+
+def plan(out: Path, dhs: str) -> list[dict[str, str]]:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(SWEEP_PY),
+            "plan",
+            str(INPUT / "case0.nml"),
+            "--dh",
+            dhs,
+            *[a for s in LONG_SETS for a in ("--set", s)],
+            "--exe",
+            str(EXE),
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    with (out / "runs.csv").open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def collect(out: Path) -> dict[str, str]:
+    proc = subprocess.run(
+        [sys.executable, str(SWEEP_PY), "collect", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+    assert proc.returncode == 0, proc.stderr
+    with (out / "regime.csv").open(newline="") as f:
+        return {Path(r["dir"]).name: r["pattern"] for r in csv.DictReader(f)}
+
+
+def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
+    """sweep_array.slurm over a 2-run plan with --ntasks=1 on the sbatch line: task 1 is sent
+    SIGUSR1 as soon as it runs and is resubmitted as that index only, with 1 task; both runs
+    end finished, `collect` shows both with a pattern, and the interrupted run's file is
+    bitwise that of its run finished in one go by task 0's twin (same settings, same ranks)."""
+    name = "dkt-real-array"
+    out = tmp_path / "sweep"
+    rows = plan(out, "2,2.0001")
+    env = job_env(RUNS=str(out / "runs.csv"), MAX_RESUBMITS="3", SBATCH_SIGNAL="B:USR1@10")
+    array = sbatch(
+        [
+            "--array=0-1",
+            "--ntasks=1",
+            "--time=5",
+            f"--job-name={name}",
+            str(ROOT / "input" / "slurm" / "sweep_array.slurm"),
+        ],
+        ROOT,
+        env,
+    )
+    wait_running(f"{array}_1", name)
+    wait_for(out / rows[1]["id"] / "run.log")
+    subprocess.run(["scancel", "--batch", "--signal=USR1", f"{array}_1"], check=True, timeout=60)
+    wait_gone(name)
+    interrupted = out / rows[1]["id"]
+    log = (interrupted / "run.log").read_text()
+    assert len((interrupted / "jobs").read_text().split()) >= 2, log
+    assert "--restart" in log and "SIGUSR1" in log, log
+    patterns = collect(out)
+    assert all(p not in ("missing", "failed", "stopped") for p in patterns.values()), patterns
+
+    direct = tmp_path / "direct"
+    run("case0.nml", 1, [*LONG_SETS, f"pair.dh={rows[1]['dh']}"], direct, timeout=600)
+    assert_same_output(direct, interrupted)
+
+
+def test_sweep_py_slurm_plan_collected_into_a_regime_map(tmp_path: Path) -> None:
+    """`sweep.py slurm` with its default 4 tasks, submitted with --ntasks=1 from another
+    directory than the sweep's (which it finds by itself), runs both rows; a second
+    submission skips the finished runs and leaves their logs; collect draws the map."""
+    name = "dkt-real-sweep"
+    out = tmp_path / "sweep"
+    plan(out, "2,2.0001")
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(SWEEP_PY),
+            "slurm",
+            "--out",
+            str(out),
+            "--time",
+            "00:05:00",
+            "--job-name",
+            name,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    for _ in range(2):
+        sbatch(["--ntasks=1", str(out / "sweep.slurm")], tmp_path, job_env())
+        wait_gone(name)
+    logs = {p.parent.name: p.read_text() for p in out.glob("*/run.log")}
+    assert len(logs) == 2
+    for text in logs.values():
+        assert text.count("# job ") == 1, text  # run once; the second task skipped it
+        assert "is finished" in text, text
+    assert not list(tmp_path.glob("slurm-*.out"))
+    patterns = collect(out)
+    assert all(p not in ("missing", "failed", "stopped") for p in patterns.values()), patterns
+    assert (out / "regime.png").stat().st_size > 0
