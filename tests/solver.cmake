@@ -30,7 +30,7 @@ if(DKTLBM_SANITIZE)
   # with in place (the same sweep code; the sanitized matrix runs in place).
   set(_dkt_matrix_args -k "not repro and not -3] and not -4] and not two_lattices and not window_uneven_rows_3_fluid")
 else()
-  # the window case with interior fluid (six runs, some 17 s) is a long check of its own
+  # the window case with interior fluid (six runs, 11 s) is a long check of its own
   set(_dkt_matrix_args -k "not window_uneven_rows_3_fluid")
   dkt_add_pytest(NAME rank_matrix_window_fluid FILE tests/test_rank_matrix.py LABELS mpi long
     PROCESSORS 4 TIMEOUT 900 ARGS -k "window_uneven_rows_3_fluid")
