@@ -127,6 +127,7 @@ module dkt_config
   type, public :: coupling_cfg_t
     character(len=16) :: bounce_back = 'yu' !! 'halfway', 'yu' or 'bfl' (E6)
     character(len=16) :: momentum = 'paper' !! 'paper' or 'galilean' (E7)
+    character(len=16) :: interior = 'solid' !! 'solid' or 'fluid' (nodes inside a particle)
   end type coupling_cfg_t
 
   !> &collision: the short-range repulsion of Wan & Turek between particles and walls.
@@ -409,6 +410,9 @@ contains
                     'bounce-back on the particle surface: half-way, Yu et al. or BFL (E6)')
     call add_choice(reg, 'coupling', 'momentum', c%coupling%momentum, 'paper galilean', &
                     'momentum exchange: the paper''s rule or Galilean-invariant (E7)')
+    call add_choice(reg, 'coupling', 'interior', c%coupling%interior, 'solid fluid', &
+                    'nodes inside a particle: reset to the rigid-body equilibrium, or fluid '// &
+                    'bounced from both sides of the surface')
 
     call add_real(reg, 'collision', 'stiffness', c%collision%stiffness, 'cm^3 s^2/g', &
                   'eps_p of E10 for a gap below range (wall: eps_p/2, E11)', gt=0.0_wp)

@@ -13,19 +13,19 @@
 module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
-                     MPI_STATUSES_IGNORE
+                     MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
   implicit none
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
-            max_ranks_for, MIN_SLAB_ROWS
+            domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS
 
   !> fewest rows a slab may hold: the open-end rule (E5) reads the row next to the end row
   integer, parameter :: MIN_SLAB_ROWS = 2
   integer, parameter :: up_pops(3) = [2, 5, 6]   !! populations with c_y = +1
   integer, parameter :: down_pops(3) = [4, 7, 8] !! populations with c_y = -1
-  integer, parameter :: TAG_UP = 11, TAG_DOWN = 12
+  integer, parameter :: TAG_UP = 11, TAG_DOWN = 12, TAG_EDGE_UP = 13, TAG_EDGE_DOWN = 14
 
   type :: domain_t
     type(MPI_Comm) :: comm           !! duplicated communicator of the run
@@ -187,5 +187,20 @@ contains
       end do
     end if
   end subroutine halo_finish
+
+  !> One value per column of the two edge rows to the neighbours: `first` (row 1) goes to the
+  !! lower neighbour, `last` (row nyl) to the upper one; `below` receives the lower neighbour's
+  !! row nyl (this slab's halo row 0), `above` the upper neighbour's row 1 (halo row nyl+1).
+  !! At a closed or open end the receiving array is left as it is. The values travel unchanged,
+  !! so a halo value has the bits its owner computed.
+  subroutine domain_edge_rows(dom, first, last, below, above)
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(in) :: first(:), last(:)
+    real(wp), intent(inout) :: below(:), above(:)
+    call MPI_Sendrecv(last, size(last), mpi_wp, dom%above, TAG_EDGE_UP, below, size(below), &
+                      mpi_wp, dom%below, TAG_EDGE_UP, dom%comm, MPI_STATUS_IGNORE)
+    call MPI_Sendrecv(first, size(first), mpi_wp, dom%below, TAG_EDGE_DOWN, above, &
+                      size(above), mpi_wp, dom%above, TAG_EDGE_DOWN, dom%comm, MPI_STATUS_IGNORE)
+  end subroutine domain_edge_rows
 
 end module dkt_domain

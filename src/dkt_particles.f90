@@ -11,9 +11,11 @@
 !> trajectory has the same bits whatever the number of ranks (docs/design.md, "Particles across
 !> slabs").
 !>
-!> Interior nodes are not fluid: after each sweep they hold the equilibrium at the local
-!> particle velocity, and a node the particle uncovers is refilled with the equilibrium at the
-!> wall velocity and the mean density of its fluid neighbours.
+!> Interior nodes (coupling.interior): 'solid', they are not fluid: after each sweep they hold
+!> the equilibrium at the local particle velocity, and a node the particle uncovers is refilled
+!> with the equilibrium at the wall velocity and the mean density of its fluid neighbours.
+!> 'fluid', they hold fluid that streams and collides like the rest, bounced back from the inside
+!> of the surface on the interior links; nothing is reset or refilled.
 !>
 !> Every population these routines read or write goes through its unshifted 8-byte value
 !> (dkt_store), whatever lbm.precision stores: bounce-back with a moving wall, the equilibria
@@ -22,13 +24,14 @@ module dkt_particles
   use mpi_f08, only: MPI_Gatherv, MPI_Allgatherv, MPI_Bcast
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
-  use dkt_domain, only: domain_t, domain_rows_for
+  use dkt_domain, only: domain_t, domain_rows_for, domain_edge_rows
   use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
   use dkt_collisions, only: collision_forces
   implicit none
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
-            particles_interior, particles_reduce_forces, particles_move, particles_solid_field, &
+            particles_interior, particles_inner_save, particles_inner_write, &
+            particles_reduce_forces, particles_move, particles_solid_field, &
             particles_stable_substeps, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
             BB_HALFWAY, BB_YU, BB_BFL
 
@@ -48,6 +51,15 @@ module dkt_particles
     real(wp) :: cx = 0, cy = 0                !! collision force of the last step
   end type particle_t
 
+  !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
+  !! is a lattice node outside k.
+  type :: inner_link_t
+    integer :: k = 0, i = 0, j = 0, d = 0 !! particle, column, local row of x_s, direction i
+    real(wp) :: q = 1                     !! fluid fraction of the link x_f -> x_s
+    logical :: ff = .false.               !! x_f is a fluid node
+    real(wp) :: val = 0                   !! f_i(x_s, t+1), saved before E6
+  end type inner_link_t
+
   type :: particles_t
     integer :: n = 0
     type(particle_t), allocatable :: p(:)
@@ -63,19 +75,27 @@ module dkt_particles
     real(wp), allocatable :: lq(:)                      !! fluid fraction of the link
     logical, allocatable :: lff(:)                      !! second fluid node available
     real(wp), allocatable :: rows(:, :, :)              !! (3, nyl, n): per-row force, torque
+    ! interior links (coupling.interior = 'fluid' only), ordered like the boundary links
+    logical :: fluid_interior = .false.
+    integer :: ninner = 0
+    type(inner_link_t), allocatable :: inner(:)
+    real(wp), allocatable :: rho_first(:), rho_last(:)  !! density of rows 1, nyl (columns 1..nx)
+    real(wp), allocatable :: rho_below(:), rho_above(:) !! the same of halo rows 0, nyl+1
   end type particles_t
 
 contains
 
   !> Set up n particles from centres, radii, velocities (lattice units) and motion modes.
   subroutine particles_init(ps, dom, x, y, r, u, v, omega, density_ratio, motion, scheme, &
-                            galilean, gravity, stiffness, stiffness_overlap, range, substeps)
+                            galilean, gravity, stiffness, stiffness_overlap, range, substeps, &
+                            fluid_interior)
     type(particles_t), intent(out) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: x(:), y(:), r(:), u(:), v(:), omega(:), density_ratio(:)
     integer, intent(in) :: motion(:), scheme, substeps
     logical, intent(in) :: galilean
     real(wp), intent(in) :: gravity, stiffness, stiffness_overlap, range
+    logical, intent(in), optional :: fluid_interior !! coupling.interior = 'fluid'
     integer :: k
     ps%n = size(x)
     allocate (ps%p(ps%n))
@@ -102,6 +122,14 @@ contains
     ps%substeps = substeps
     allocate (ps%rows(3, dom%nyl, ps%n))
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0))
+    if (present(fluid_interior)) ps%fluid_interior = fluid_interior
+    if (ps%fluid_interior) then
+      allocate (ps%inner(0))
+      allocate (ps%rho_first(dom%nx), ps%rho_last(dom%nx), ps%rho_below(dom%nx), &
+                ps%rho_above(dom%nx))
+      ps%rho_below = 1.0_wp
+      ps%rho_above = 1.0_wp
+    end if
   end subroutine particles_init
 
   !> The fewest particle sub-steps per fluid step for which the explicit update (E8) of the
@@ -150,6 +178,42 @@ contains
     inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
   end function inside
 
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle p, along
+  !! e_d that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
+  pure real(wp) function link_fraction(p, px, py, d) result(q)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    integer, intent(in) :: d
+    real(wp) :: dxp, dyp, b, c, t
+    dxp = px - p%x
+    dyp = py - p%y
+    b = dxp*ex(d) + dyp*ey(d)
+    c = dxp*dxp + dyp*dyp - p%r*p%r
+    t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))/(ex(d)**2 + ey(d)**2)
+    q = min(max(t, 1.0e-6_wp), 1.0_wp)
+  end function link_fraction
+
+  !> The wall point x_w = x_f + q e_d of the link from node (i, jg) (global row) along e_d, the
+  !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
+  !! the population bounced back towards x_f. The interior side of the same link receives -W.
+  pure subroutine wall_of_link(p, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
+    type(particle_t), intent(in) :: p
+    integer, intent(in) :: i, jg, d
+    real(wp), intent(in) :: q, rho
+    real(wp), intent(out) :: xw, yw, uwx, uwy, wall
+    xw = i - 0.5_wp + q*ex(d)
+    yw = jg - 0.5_wp + q*ey(d)
+    call surface_velocity(p, xw, yw, uwx, uwy)
+    wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
+  end subroutine wall_of_link
+
+  !> The density at node (i, j) of this slab, summed as every routine here sums it.
+  real(wp) function node_density(f, i, j) result(rho)
+    type(lattice_t), intent(in) :: f
+    integer, intent(in) :: i, j
+    rho = sum(lattice_get_node(f, i, j))
+  end function node_density
+
   !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
   pure logical function is_fluid(ps, dom, i, jg)
     type(particles_t), intent(in) :: ps
@@ -173,8 +237,9 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
-    real(wp) :: px, py, dxp, dyp, b, c, t
+    real(wp) :: px, py
     n = 0
+    ps%ninner = 0
     cap = max(16, size(ps%lp))
     call resize(cap)
     do k = 1, ps%n
@@ -185,15 +250,14 @@ contains
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            if (.not. is_fluid(ps, dom, i, jg)) cycle
+            if (.not. is_fluid(ps, dom, i, jg)) then
+              if (ps%fluid_interior) then
+                if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)
+              end if
+              cycle
+            end if
             do d = 1, 8
               if (.not. inside(p, px + ex(d), py + ey(d))) cycle
-              ! |x_f + t e - X|^2 = r^2, smaller root (x_f is outside)
-              dxp = px - p%x
-              dyp = py - p%y
-              b = dxp*ex(d) + dyp*ey(d)
-              c = dxp*dxp + dyp*dyp - p%r*p%r
-              t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))/(ex(d)**2 + ey(d)**2)
               n = n + 1
               if (n > cap) then
                 cap = 2*cap
@@ -203,7 +267,7 @@ contains
               ps%lx(n) = i
               ps%ly(n) = j
               ps%ld(n) = d
-              ps%lq(n) = min(max(t, 1.0e-6_wp), 1.0_wp)
+              ps%lq(n) = link_fraction(p, px, py, d)
               ps%lff(n) = is_fluid(ps, dom, i - ex(d), jg - ey(d))
             end do
           end do
@@ -227,6 +291,89 @@ contains
       allocate (tl(m)); tl(1:keep) = ps%lff(1:keep); call move_alloc(tl, ps%lff)
     end subroutine resize
   end subroutine particles_find_links
+
+  !> Append the interior links of node (i, j) of this slab, which lies inside particle k
+  !! (coupling.interior = 'fluid'): each direction i with x_f = x_s - e_i outside k and a
+  !! lattice node (a fluid node, a halo node or a node of another particle; not beyond a side
+  !! or a closed end). q is computed from x_f as for the boundary link (x_f, i), so that both
+  !! sides of the link take the wall point, and u_w there, with the same bits.
+  subroutine add_inner_links(ps, dom, k, i, j)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: k, i, j
+    type(inner_link_t), allocatable :: grown(:)
+    integer :: d, fi, fjg
+    do d = 1, 8
+      fi = i - ex(d)
+      fjg = dom%y0 + j - ey(d)
+      if (inside(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (fi < 1 .or. fi > dom%nx) cycle
+      if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
+      if (ps%ninner == size(ps%inner)) then
+        allocate (grown(max(64, 2*ps%ninner)))
+        grown(1:ps%ninner) = ps%inner(1:ps%ninner)
+        call move_alloc(grown, ps%inner)
+      end if
+      ps%ninner = ps%ninner + 1
+      ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
+                                         link_fraction(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         is_fluid(ps, dom, fi, fjg), 0.0_wp)
+    end do
+  end subroutine add_inner_links
+
+  !> Interior side of the links (coupling.interior = 'fluid'), first half: with the halo rows
+  !! complete and before any boundary link is bounced, save for each interior link (x_s, i)
+  !! the population the interior node receives, half-way bounce-back from the inside,
+  !!     f_i(x_s, t+1) = f_ibar*(x_s) - W,
+  !! W the moving-wall term of the boundary link (x_f, i) (rho the density at x_f it uses, 1
+  !! when x_f is not a fluid node). The densities of the halo rows come from their owners, so
+  !! a link across a slab face uses the bits its boundary link uses. Every rank calls it.
+  subroutine particles_inner_save(ps, dom, f)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(in) :: f
+    integer :: l, i, j, d, fi, fj
+    real(wp) :: rho, xw, yw, uwx, uwy, wall
+    do i = 1, dom%nx
+      ps%rho_first(i) = node_density(f, i, 1)
+      ps%rho_last(i) = node_density(f, i, dom%nyl)
+    end do
+    call domain_edge_rows(dom, ps%rho_first, ps%rho_last, ps%rho_below, ps%rho_above)
+    do l = 1, ps%ninner
+      i = ps%inner(l)%i
+      j = ps%inner(l)%j
+      d = ps%inner(l)%d
+      fi = i - ex(d)
+      fj = j - ey(d)
+      rho = 1.0_wp
+      if (ps%inner(l)%ff) then
+        if (fj == 0) then
+          rho = ps%rho_below(fi)
+        else if (fj == dom%nyl + 1) then
+          rho = ps%rho_above(fi)
+        else
+          rho = node_density(f, fi, fj)
+        end if
+      end if
+      call wall_of_link(ps%p(ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+                        uwx, uwy, wall)
+      ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
+    end do
+  end subroutine particles_inner_save
+
+  !> Interior side, second half: after every boundary link has been bounced (E6 and E7 read
+  !! f_i*(x_f) and the density at x_f), write each saved value into slot i of x_f, which only
+  !! x_s pulls in the sweep.
+  subroutine particles_inner_write(ps, f)
+    type(particles_t), intent(in) :: ps
+    type(lattice_t), intent(inout) :: f
+    integer :: l
+    do l = 1, ps%ninner
+      associate (a => ps%inner(l))
+        call lattice_set(f, a%i - ex(a%d), a%j - ey(a%d), a%d, a%val)
+      end associate
+    end do
+  end subroutine particles_inner_write
 
   !> E6 and E7 on the links whose fluid node lies in rows j1..j2: write the bounced population
   !! f_ibar(x_f, t+1) into the slot of the solid node that x_f pulls it from, and add the link's
@@ -253,12 +400,9 @@ contains
       db = opp(d)
       q = ps%lq(l)
       associate (p => ps%p(k))
-        ! wall point and its velocity u_w = U + Omega x (x_w - X)
-        xw = i - 0.5_wp + q*ex(d)
-        yw = dom%y0 + j - 0.5_wp + q*ey(d)
-        call surface_velocity(p, xw, yw, uwx, uwy)
-        rho = sum(lattice_get_node(f, i, j))
-        wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
+        ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
+        rho = node_density(f, i, j)
+        call wall_of_link(p, i, dom%y0 + j, d, q, rho, xw, yw, uwx, uwy, wall)
         fi = lattice_get(f, i, j, d)
         fib = lattice_get(f, i, j, db)
         fff = 0.0_wp
@@ -435,7 +579,8 @@ contains
         p%fx = state(6); p%fy = state(7); p%torque = state(8); p%cx = state(9); p%cy = state(10)
       end associate
     end do
-    if (moving) call refill(ps, old, dom, f)
+    ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
+    if (moving .and. .not. ps%fluid_interior) call refill(ps, old, dom, f)
   end subroutine particles_move
 
   !> Nodes inside a particle's old disk and outside every new one become fluid: equilibrium at

@@ -104,7 +104,8 @@ contains
       if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
       if (sim%particles_on) then
         line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
-               ', E7 '//trim(cfg%coupling%momentum)//', E8-E11)'
+               ', E7 '//trim(cfg%coupling%momentum)//', interior '// &
+               trim(cfg%coupling%interior)//', E8-E11)'
       else
         line = trim(line)//'; particles off'
       end if

@@ -16,7 +16,8 @@ module dkt_simulation
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
                           apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
   use dkt_particles, only: particles_init, particles_find_links, particles_bounce, &
-                           particles_interior, particles_reduce_forces, particles_move, &
+                           particles_interior, particles_inner_save, particles_inner_write, &
+                           particles_reduce_forces, particles_move, &
                            particles_stable_substeps, MOTION_FREE, MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_diagnostics, only: guard_check, guard_particle_speed, guard_set_advice, &
@@ -142,7 +143,8 @@ contains
     associate (p => sim%lp%particles, c => sim%cfg%collision)
       call particles_init(sim%parts, sim%dom, p%x, p%y, p%r, p%u, p%v, p%omega, p%density, &
                           motion, scheme, sim%cfg%coupling%momentum == 'galilean', p%gravity, &
-                          p%stiffness, p%stiffness_overlap, c%range, c%substeps)
+                          p%stiffness, p%stiffness_overlap, c%range, c%substeps, &
+                          sim%cfg%coupling%interior == 'fluid')
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
     ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so
@@ -354,25 +356,30 @@ contains
   !! rows. Each node sees the same operations in the same order as with the halo completed
   !! first, and each row's force sum adds its links in the same order, so the bits do not
   !! change. Forces are summed (E7), the particles moved (E8–E11) and the window moved after
-  !! them (docs/model.md §5), before the boundary links are found for the next step.
+  !! them (docs/model.md §5), before the boundary links are found for the next step. With
+  !! interior fluid the flow part is fluid_interior_sweep instead, and no node is reset.
   subroutine particle_step(sim, n, failure)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
     failure = ''
-    associate (nyl => sim%dom%nyl)
-      call halo_start(sim%dom, sim%f)
-      call fill_local_ghosts(sim%bc, sim%dom, sim%f)
-      call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
-      call sweep_part(sim, 1)
-      call halo_finish(sim%dom, sim%f)
-      call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
-      call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
-      call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
-      call sweep_part(sim, 2)
-    end associate
+    if (sim%parts%fluid_interior) then
+      call fluid_interior_sweep(sim)
+    else
+      associate (nyl => sim%dom%nyl)
+        call halo_start(sim%dom, sim%f)
+        call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+        call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
+        call sweep_part(sim, 1)
+        call halo_finish(sim%dom, sim%f)
+        call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+        call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
+        call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
+        call sweep_part(sim, 2)
+      end associate
+    end if
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
-    call particles_interior(sim%parts, sim%dom, sim%f_next)
+    if (.not. sim%parts%fluid_interior) call particles_interior(sim%parts, sim%dom, sim%f_next)
     ! fixed particles only: every rank sums the forces, so that no state is sent back
     call particles_reduce_forces(sim%parts, sim%dom,.not. sim%particles_move)
     ! the owners move their particles (fixed ones stay) and send every rank the new state
@@ -384,6 +391,25 @@ contains
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
     if (sim%particles_move .and. len(failure) == 0) call particles_find_links(sim%parts, sim%dom)
   end subroutine particle_step
+
+  !> The flow part of a step with interior fluid (coupling.interior = 'fluid', docs/model.md §3),
+  !! without overlap: the halo completes first; the interior links save what their nodes
+  !! receive (this reads the slots E6 then overwrites); E6/E7 on every boundary link; the
+  !! interior values go into the slots of the outer nodes (E6 and E7 have read them); then
+  !! every row is swept. Both parts of the sweep follow one another with nothing written in
+  !! between, so the in-place sweep sees what the two-lattice one sees.
+  subroutine fluid_interior_sweep(sim)
+    type(simulation_t), intent(inout) :: sim
+    call halo_start(sim%dom, sim%f)
+    call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+    call halo_finish(sim%dom, sim%f)
+    call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+    call particles_inner_save(sim%parts, sim%dom, sim%f)
+    call particles_bounce(sim%parts, sim%dom, sim%f, 1, sim%dom%nyl)
+    call particles_inner_write(sim%parts, sim%f)
+    call sweep_part(sim, 1)
+    call sweep_part(sim, 2)
+  end subroutine fluid_interior_sweep
 
   !> Why the run must stop ('' if it need not): a particle left the lattice (its centre beyond
   !! a side or an end), a prescribed particle reached a wall, or a prescribed particle entered

@@ -14,6 +14,13 @@ if(DKTLBM_SANITIZE)
 endif()
 dkt_add_pytest(NAME particles FILE tests/test_particles.py LABELS regression mpi PROCESSORS 3
   TIMEOUT 1500 ARGS ${_dkt_particles_args})
+# coupling.interior = 'fluid': mass to round-off with half-way bounce-back, the settling disk's
+# Re_max, restart bit for bit, the models line (seconds); the disk barely denser than the fluid
+# settles alike with either interior (2 s of settling, four runs: long)
+dkt_add_pytest(NAME interior FILE tests/test_interior.py LABELS regression mpi PROCESSORS 3
+  TIMEOUT 600 ARGS -k "not barely_denser")
+dkt_add_pytest(NAME interior_density_ratio FILE tests/test_interior.py LABELS regression long
+  PROCESSORS 2 TIMEOUT 900 ARGS -k "barely_denser")
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
 if(DKTLBM_SANITIZE)
   # Sanitized ranks are a few times slower, and more ranks than cores (3 or 4 on CI's 2) wait
@@ -21,7 +28,12 @@ if(DKTLBM_SANITIZE)
   # uneven splits of 2 ranks are where the window shift overran); 3 and 4 ranks and the
   # paper-resolution repro run in the optimised build, and so does the comparison of two lattices
   # with in place (the same sweep code; the sanitized matrix runs in place).
-  set(_dkt_matrix_args -k "not repro and not -3] and not -4] and not two_lattices")
+  set(_dkt_matrix_args -k "not repro and not -3] and not -4] and not two_lattices and not window_uneven_rows_3_fluid")
+else()
+  # the window case with interior fluid (six runs, 11 s) is a long check of its own
+  set(_dkt_matrix_args -k "not window_uneven_rows_3_fluid")
+  dkt_add_pytest(NAME rank_matrix_window_fluid FILE tests/test_rank_matrix.py LABELS mpi long
+    PROCESSORS 4 TIMEOUT 900 ARGS -k "window_uneven_rows_3_fluid")
 endif()
 dkt_add_pytest(NAME rank_matrix FILE tests/test_rank_matrix.py LABELS mpi PROCESSORS 4
   TIMEOUT 1200 ARGS ${_dkt_matrix_args})

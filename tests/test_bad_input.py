@@ -155,6 +155,11 @@ CASES = {
         args=["--set", "lbm.collision=xyz"],
         pieces=["{file}", "--set lbm.collision=xyz", "&lbm", "collision", "'xyz'", "'mrt'"],
     ),
+    "interior-not-in-list-by-set": Case(
+        args=["--set", "coupling.interior=ladd"],
+        pieces=["{file}", "--set coupling.interior=ladd", "&coupling", "interior", "'ladd'"]
+        + ["'solid'", "'fluid'"],
+    ),
     "precision-not-in-list": Case(
         "tau = 1.0",
         "tau = 1.0, precision = 'half'",

@@ -7,7 +7,8 @@ Each case is a short run of a small scene, chosen so that together the cases cov
 - particles whose centres cross a slab face while the window shifts, and in a box;
 - open ends (velocity and outflow, E5), closed ends (walls) and periodic ends;
 - populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single');
-- in-place streaming (the default) against two lattices (lbm.streaming = 'two_lattice').
+- in-place streaming (the default) against two lattices (lbm.streaming = 'two_lattice');
+- interior nodes solid (the default) and fluid (coupling.interior = 'fluid').
 
 For every case and every rank count, every dataset under /particles, /diagnostics and /fields
 (fields written several times during the run) must be bitwise equal to the 1-rank run, and the
@@ -152,6 +153,16 @@ for _case in ("window_uneven_rows_3", "closed_box_crossing"):
         **CASES[_case],
         "sets": CASES[_case]["sets"] + ["lbm.precision=single"],
         "double_twin": _case,
+    }
+
+# coupling.interior = 'fluid': the interior nodes are fluid, bounced from both sides of the
+# surface, and an interior link whose outer node lies in a halo row takes that node's density
+# from its owner. The closed box (a disk across the 3-rank face, uneven rows) and a window case
+# (interior fluid carried along by the row shifts, a centre across the 3-rank face).
+for _case in ("closed_box_crossing", "window_uneven_rows_3"):
+    CASES[f"{_case}_fluid"] = {
+        **CASES[_case],
+        "sets": CASES[_case]["sets"] + ["coupling.interior=fluid"],
     }
 
 
