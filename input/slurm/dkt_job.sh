@@ -204,7 +204,7 @@ dkt_run() {
       say "the run has started: SIGUSR1 passed on"
       kill -USR1 "$pid" 2>/dev/null
     fi
-    sleep 1 &
+    sleep 0.2 &
     tick=$!
     wait "$tick" 2>/dev/null
   done

@@ -493,6 +493,13 @@ def main() -> int:
         help="quantities left out of a configuration's error (e.g. 'case0_box passing [s]')",
     )
     parser.add_argument("--report-only", action="store_true", help="no runs: CSV and figure")
+    parser.add_argument(
+        "--report-scenes",
+        nargs="+",
+        choices=SCENES,
+        help="report on these scenes' runs only (a configuration run on them and not on the "
+        "others is then compared too), e.g. single case0_box case1",
+    )
     args = parser.parse_args()
 
     axes = dict(AXES)
@@ -526,7 +533,12 @@ def main() -> int:
     for spec in args.tolerances or []:
         use, _, fraction = spec.partition("=")
         TOLERANCES[use] = float(fraction)
+    # the CSV holds every run; the tables and the figure those of --report-scenes
     rows, reference, summary = analyse(records, tuple(args.exclude))
+    if args.report_scenes:
+        chosen = [r for r in records if r["scene"] in args.report_scenes]
+        _, reference, summary = analyse(chosen, tuple(args.exclude))
+        print("reported scenes:", " ".join(args.report_scenes))
     if args.exclude:
         print("left out of the error:", "; ".join(args.exclude))
     fields = list(dict.fromkeys(k for row in rows for k in row))
