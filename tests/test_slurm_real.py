@@ -164,19 +164,22 @@ def test_run_one_chain_cut_by_a_signal_equals_a_direct_run(tmp_path: Path) -> No
 def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
     """The signal of Slurm's own time limit, not one sent by hand: run_one.slurm with
     --ntasks=1 --time=1 and SBATCH_SIGNAL=B:USR1@60 is due its SIGUSR1 from the start, and
-    Slurm's timer (checked every 30 s) sends it within about half a minute, while the run
-    (60 000 steps of case0 at 16 spacings per D, about 45 s on one core) is still stepping.
-    The run checkpoints, the job resubmits it; each follow-up job gets a 10 min limit here
-    (scontrol) so that the chain ends, and may itself be cut again if the timer comes first.
-    The chain's output is bitwise that of a direct one-rank run, made at the same time on
-    the other core."""
+    Slurm's timer, checked every 30 s, sends it within half a minute. So that the signal finds
+    the first job still running on any machine, its dktlbm starts 40 s late (a wrapper sleeps
+    before exec; srun's plugin is named, since the wrapper is no Open MPI binary): the script
+    holds the signal, passes it on once the run has its handlers, the run checkpoints and the
+    job resubmits it. Each follow-up job gets a 10 min limit here (scontrol) so that the chain
+    ends (it may be cut again if the timer comes first). The chain's output is bitwise that of
+    a direct one-rank run, made at the same time on the other core."""
     name = "dkt-real-limit"
-    sets = [
-        "lbm.cells_per_diameter=16",
-        "run.steps=60000",
-        "output.series_interval=0.01",
-        "output.field_interval=5",
-    ]
+    sets = ["lbm.cells_per_diameter=16", "run.steps=12000", "output.series_interval=0.01",
+            "output.field_interval=2"]  # fmt: skip
+    slept = tmp_path / "slept"
+    late = tmp_path / "dktlbm-late"
+    late.write_text(
+        f'#!/bin/sh\n[ -e "{slept}" ] || {{ touch "{slept}"; sleep 40; }}\nexec "{EXE}" "$@"\n'
+    )
+    late.chmod(0o755)
     direct = tmp_path / "direct"
     args = [str(EXE), str(INPUT / "case0.nml"), *[a for s in sets for a in ("--set", s)]]
     with (tmp_path / "direct.log").open("w") as log:
@@ -188,7 +191,8 @@ def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
         env = job_env(
             SCENE=str(INPUT / "case0.nml"),
             OUTDIR=str(out),
-            DKTLBM=str(EXE),
+            DKTLBM=str(late),
+            DKT_SRUN_MPI="pmix",
             EXTRA=" ".join(f"--set {s}" for s in sets),
             MAX_RESUBMITS="6",
             SBATCH_SIGNAL="B:USR1@60",
