@@ -42,7 +42,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from precision_accuracy import episodes  # noqa: E402
+from precision_accuracy import episodes, pair_run  # noqa: E402
 from tradeoff import config_name, fmt, run_one  # noqa: E402
 
 from dkt_run import ROOT  # noqa: E402
@@ -67,13 +67,7 @@ def first(times: np.ndarray) -> object:
 
 
 def answers_case0_box(out: Path) -> list[tuple[str, object]]:
-    with h5py.File(out / "case0_box.h5", "r") as h5:
-        t = h5["particles/t"][()]
-        y = h5["particles/y"][()]
-        diag = h5["diagnostics"]
-        dr = diag["dr"][()]
-        starts, ends = episodes(diag)
-        pattern = diag.attrs["pattern"].decode()
+    t, y, dr, starts, ends, pattern = pair_run(out / "case0_box.h5")
     return [
         ("kissing begins (3 spacings) [s]", first(starts)),
         (f"kissing begins (D_r < {HLBM_GAP} cm) [s]", first(t[dr < HLBM_GAP])),

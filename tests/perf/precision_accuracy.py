@@ -101,15 +101,19 @@ def episodes(diag: h5py.Group) -> tuple[np.ndarray, np.ndarray]:
     return diag["episodes/start"][()], diag["episodes/end"][()]
 
 
+def pair_run(h5file: Path) -> tuple[np.ndarray, ...]:
+    """A pair run's sample times, heights y (one column per particle), surface gap D_r, the
+    start and end times of its kissing episodes, and its pattern."""
+    with h5py.File(h5file, "r") as h5:
+        diag = h5["diagnostics"]
+        starts, ends = episodes(diag)
+        return (h5["particles/t"][()], h5["particles/y"][()], diag["dr"][()], starts, ends,
+                diag.attrs["pattern"].decode())  # fmt: skip
+
+
 def answers_case0_box(h5file: Path) -> list[tuple[str, object]]:
     """The gap at 0.5 s, the first kissing episode, the first passing and the run's pattern."""
-    with h5py.File(h5file, "r") as h5:
-        t = h5["particles/t"][()]
-        y = h5["particles/y"][()]
-        diag = h5["diagnostics"]
-        dr = diag["dr"][()]
-        starts, ends = episodes(diag)
-        pattern = diag.attrs["pattern"].decode()
+    t, y, dr, starts, ends, pattern = pair_run(h5file)
     passing = t[np.nonzero(y[:, 0] < y[:, 1])[0]]
     return [
         ("case0_box gap at 0.5 s [cm]", float(np.interp(0.5, t, dr))),
