@@ -17,10 +17,12 @@ reads each run's pattern (pattern.py) into DIR/regime.csv and draws DIR/regime.p
 
 `bisect` narrows [A, B] to a bracket of width <= T around the value of pair.gamma or pair.dh
 where the pattern changes, N runs per step; its runs are rows of DIR/runs.csv like a plan's.
-A pattern counts only when it is settled: the episodes that start by t_end/2 give the same
-pattern as all of them (else the point runs again with t_end doubled, up to --max-t-end); a run
-that ended by window_escape is settled only when the pair was separating for good (the lower
-particle falling faster). `collect` reports both in regime.csv.
+A pattern counts only when it is settled. 'repeated' is final as soon as a run has it (episodes
+only add). 'once' and 'never' are settled when the episodes that start by t_end/2 give the same
+pattern as all of them and the pair is not closing in at t_end; otherwise the point runs again
+with t_end doubled, up to --max-t-end. A run that ended by window_escape is never final by
+itself: the point runs again with window.above doubled, up to --max-above. `collect` reports
+both in regime.csv.
 """
 
 from __future__ import annotations
@@ -48,9 +50,10 @@ COLUMNS = ("id", "gamma", "dh", "dir", "command")
 REGIME_COLUMNS = ("gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir", "status",
                   "t_end", "settled", "left_window")
 BISECT_CSV = "bisect.csv"
+WINDOW_ABOVE = 15.0  # D_1, dktlbm's default window.above
 BISECT_STATE = "bisect.json"
 BISECT_COLUMNS = ("row", "value", "pattern", "episodes", "first_kiss_t", "t_end", "end_t",
-                  "status", "settled", "wall_s", "dir")
+                  "status", "settled", "wall_s", "dir", "above")
 # marker and colour of each pattern on the regime map
 STYLE = {
     "repeated": ("o", "tab:red"),
@@ -373,9 +376,11 @@ class Verdict:
     """What one run file says about its pattern, and whether that pattern is final.
 
     `half` is the pattern of the episodes that start by t_end/2, `pattern` that of all of
-    them; a finished run is settled when the two agree (its pattern would survive doubling
-    t_end as far as this run can tell). A run that ended by window_escape is settled when the
-    pair was separating for good at its end (see escape_is_final). Anything else (a guard, an
+    them. Episodes only add as a run goes on, so 'repeated' is final as soon as it is reached.
+    A finished run with 'once' or 'never' is settled when the two agree and the pair is not
+    closing in at its end (see closing_in): its pattern would survive doubling t_end as far as
+    this run can tell. A run that ended by window_escape is not settled: the pair was lost, and
+    the upper particle may come back (a bigger window can tell). Anything else (a guard, an
     error, a signal, a run still going, no file) is not a pattern at all: `status` says what."""
 
     status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing', 'failed'
@@ -393,23 +398,21 @@ class Verdict:
         return self.status in ("finished", "window_escape")
 
 
-def escape_is_final(pair) -> tuple[bool, str]:
-    """A run ended by window_escape: final when, at its last sample, the pair is not kissing,
-    the gap D_r is growing and the lower particle sinks faster than the upper one, so the
-    upper one cannot catch up again (the gap is then about window.above D_1)."""
+def closing_in(pair) -> tuple[bool, str]:
+    """Whether the pair is closing in at the run's last sample: the upper particle sinks faster
+    than the lower one and the gap D_r is smaller than a quarter of the run before. Such a pair
+    may kiss again after the run's end (Case-1 at gamma = 1.1875: separated to 14 D_1 by
+    t* = 100, kissed again at t* = 240)."""
     run = pair.run
     y, v = run.series["y"][-1, :2], run.series["v"][-1, :2]
     lower, upper = (0, 1) if y[0] < y[1] else (1, 0)
-    back = max(0, pair.dr.size - 4)
-    growing = pair.dr.size > 1 and pair.dr[-1] > pair.dr[back]
-    faster = v[lower] < v[upper]
-    if pair.open_episode:
-        return False, "the pair was still kissing when it left the window"
-    if not (growing and faster):
-        return False, (f"at the escape the lower particle sank at {-v[lower]:.4g} cm/s, the "
-                       f"upper at {-v[upper]:.4g} cm/s and the gap was "
-                       f"{'growing' if growing else 'not growing'}: they may meet again")
-    return True, "the pair separated for good (the lower particle sinks faster)"
+    back = int(pair.t.searchsorted(pair.t[-1] - 0.25 * (pair.t[-1] - pair.t[0])))
+    shrinking = pair.dr.size > 1 and pair.dr[-1] < pair.dr[min(back, pair.dr.size - 1)]
+    gaining = v[upper] < v[lower]
+    state = (f"the lower particle sinks at {-v[lower]:.4g} cm/s, the upper at "
+             f"{-v[upper]:.4g} cm/s, the gap is {pair.dr[-1] / pair.d1:.3g} D_1 and "
+             f"{'shrinking' if shrinking else 'not shrinking'}")
+    return bool(shrinking and gaining), state
 
 
 def verdict(h5: Path) -> Verdict:
@@ -438,13 +441,16 @@ def verdict(h5: Path) -> Verdict:
     half = pattern_name(sum(1 for s in starts if s <= 0.5 * t_end * (1 + 1e-12)))
     v = Verdict(reason if reason == "window_escape" else "finished", pair.pattern, half,
                 len(starts), starts[0] if starts else None, t_end, end_t)
-    if v.status == "window_escape":
-        v.settled, v.why = escape_is_final(pair)
-        v.why = f"a particle left the window at t = {end_t:.4g} s; " + v.why
+    closing, state = closing_in(pair)
+    if pair.pattern == "repeated":
+        v.settled = True
+        v.why = f"{len(starts)} episodes by t = {end_t:.4g} s (episodes only add)"
+    elif v.status == "window_escape":
+        v.why = f"a particle left the window at t = {end_t:.4g} s ({state})"
     else:
-        v.settled = half == pair.pattern
+        v.settled = half == pair.pattern and not closing
         v.why = (f"{half} by t_end/2 = {0.5 * t_end:.4g} s, {pair.pattern} by t_end = "
-                 f"{t_end:.4g} s")
+                 f"{t_end:.4g} s" + (f"; closing in at t_end: {state}" if closing else ""))
     return v
 
 
@@ -496,6 +502,8 @@ class BisectSettings:
     exe: str
     t_end: float  # s, the runs' first end time
     max_t_end: float  # s
+    above: float = WINDOW_ABOVE  # D_1, the runs' first window.above
+    max_above: float = 4 * WINDOW_ABOVE  # D_1
 
     def identity(self) -> dict[str, object]:
         """What a rerun in the same directory must repeat to reuse its runs."""
@@ -516,19 +524,22 @@ class Bisector:
         self.rows: list[dict[str, str]] = []
         self.launches = 0
 
-    def planned(self, value: float, t_end: float) -> PlannedRun:
+    def planned(self, value: float, t_end: float, above: float) -> PlannedRun:
         c = self.cfg
         run_id = f"{'g' if c.key == 'gamma' else 'h'}{value:.8g}"  # as plan names them
         run_id += f"_t{t_end:g}" if t_end != c.t_end else ""
+        run_id += f"_a{above:g}" if above != c.above else ""
         args = [c.exe, str(c.base), "--set", f"pair.{c.key}={value:.8g}"]
         for s in c.sets:
             args += ["--set", s]
-        args += ["--set", f"run.t_end={t_end:g}", "--set", f"output.dir={c.out / run_id}"]
+        args += ["--set", f"run.t_end={t_end:g}"]
+        args += ["--set", f"window.above={above:g}"] if above != c.above else []
+        args += ["--set", f"output.dir={c.out / run_id}"]
         g = value if c.key == "gamma" else _base_value(c.base, c.sets, "gamma")
         h = value if c.key == "dh" else _base_value(c.base, c.sets, "dh")
         return PlannedRun(run_id, g, h, c.out / run_id, shlex.join(args))
 
-    def _record(self, value: float, r: PlannedRun, v: Verdict) -> None:
+    def _record(self, value: float, r: PlannedRun, v: Verdict, above: float) -> None:
         wall = wall_seconds(r)
         self.rows.append({
             "row": "run", "value": f"{value:.8g}", "pattern": v.pattern or v.status,
@@ -537,17 +548,19 @@ class Bisector:
             "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
             "end_t": f"{v.end_t:.6g}" if math.isfinite(v.end_t) else "",
             "status": v.status, "settled": "yes" if v.settled else "no",
-            "wall_s": "" if wall is None else f"{wall:.3g}", "dir": str(r.dir)})
+            "wall_s": "" if wall is None else f"{wall:.3g}", "dir": str(r.dir),
+            "above": f"{above:g}"})
 
     def settle(self, values: list[float]) -> dict[float, tuple[Verdict, PlannedRun]]:
-        """Run each value until its pattern is settled: at the first t_end, then with t_end
-        doubled while it is not, up to max_t_end. SweepError for a run that failed, one that
-        left the window before its pattern was final, and one not settled by max_t_end."""
+        """Run each value until its pattern is settled (Verdict): at the first t_end and
+        window.above; with t_end doubled while a finished run is not settled, up to max_t_end;
+        with window.above doubled after a window escape, up to max_above. SweepError for a run
+        that failed and for a point not settled within either limit."""
         c = self.cfg
-        target = {v: c.t_end for v in values}
+        target = {v: (c.t_end, c.above) for v in values}
         done: dict[float, tuple[Verdict, PlannedRun]] = {}
         while target:
-            runs = {v: self.planned(v, t) for v, t in target.items()}
+            runs = {v: self.planned(v, t, a) for v, (t, a) in target.items()}
             for r in runs.values():
                 self.runs.setdefault(r.id, r)
             todo = [r for r in runs.values() if run_status(r.h5) != "finished"]
@@ -558,33 +571,40 @@ class Bisector:
                 self.launches += 1
                 self.launch(todo, list(self.runs.values()))
             for value, r in runs.items():
+                t_end, above = target[value]
                 v = verdict(r.h5)
-                self._record(value, r, v)
+                self._record(value, r, v, above)
                 name = f"{c.key} = {value:.8g}"
+                at = f"t_end = {t_end:g} s, window.above = {above:g} D_1"
                 if not v.classified:
                     raise SweepError(
-                        f"run {r.dir} ({name}, t_end = {target[value]:g} s) gave no pattern: "
+                        f"run {r.dir} ({name}, {at}) gave no pattern: "
                         f"{v.status}: {v.why}; see {r.dir / 'run.log'}")
                 if v.settled:
                     print(f"  {name}: {v.pattern} ({v.episodes} episode"
-                          f"{'s' if v.episodes != 1 else ''}), settled at t_end = "
-                          f"{target[value]:g} s: {v.why}", flush=True)
+                          f"{'s' if v.episodes != 1 else ''}), settled at {at}: {v.why}",
+                          flush=True)
                     done[value] = (v, r)
                     del target[value]
                 elif v.status == "window_escape":
+                    if 2 * above > c.max_above * (1 + 1e-12):
+                        raise SweepError(
+                            f"run {r.dir} ({name}, {at}): {v.why}; its pattern ({v.pattern} so "
+                            f"far) is not final, and doubling window.above would pass "
+                            f"--max-above {c.max_above:g} D_1: raise --max-above, or bracket "
+                            f"away from this value")
+                    print(f"  {name}: not settled at {at}: {v.why}; running it again with "
+                          f"window.above = {2 * above:g} D_1", flush=True)
+                    target[value] = (t_end, 2 * above)
+                elif 2 * t_end > c.max_t_end * (1 + 1e-12):
                     raise SweepError(
-                        f"run {r.dir} ({name}): {v.why}; its pattern ({v.pattern} so far) is "
-                        f"not final and a longer run cannot tell more: make the window hold "
-                        f"both particles longer (--set window.above=..., in D_1)")
-                elif 2 * target[value] > c.max_t_end * (1 + 1e-12):
-                    raise SweepError(
-                        f"run {r.dir} ({name}): the pattern is not settled at t_end = "
-                        f"{target[value]:g} s ({v.why}) and doubling t_end would pass "
-                        f"--max-t-end {c.max_t_end:g} s")
+                        f"run {r.dir} ({name}): the pattern is not settled at {at} "
+                        f"({v.why}) and doubling t_end would pass --max-t-end "
+                        f"{c.max_t_end:g} s")
                 else:
-                    print(f"  {name}: not settled at t_end = {target[value]:g} s ({v.why}); "
-                          f"running it to {2 * target[value]:g} s", flush=True)
-                    target[value] *= 2
+                    print(f"  {name}: not settled at {at} ({v.why}); running it to "
+                          f"{2 * t_end:g} s", flush=True)
+                    target[value] = (2 * t_end, above)
         return done
 
     def search(self) -> tuple[tuple[float, str], tuple[float, str]]:
@@ -875,11 +895,13 @@ def parser() -> argparse.ArgumentParser:
         "points inside the bracket (here, or as one Slurm job array with --slurm). A point "
         "counts only with a settled pattern: the episodes that start by t_end/2 give the same "
         "pattern as all of them; otherwise it runs again with run.t_end doubled, up to "
-        "--max-t-end. A run ended by window_escape counts when the pair was separating for "
-        "good (the lower particle sinking faster), a run stopped by a guard or an error stops "
-        "the bisection. Every run is DIR/<id> and a row of DIR/runs.csv (collect and plot as a "
-        "sweep); DIR/bisect.csv lists every run and the final bracket. Rerunning the same "
-        "command reuses the finished runs; other settings for the same DIR are refused.")
+        "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
+        "whose pair is closing in at t_end is not settled. A run ended by window_escape is "
+        "never final: the point runs again with window.above doubled, up to --max-above. A run "
+        "stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
+        "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
+        "the final bracket. Rerunning the same command reuses the finished runs; other "
+        "settings for the same DIR are refused.")
     bis.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
     bis.add_argument("--key", choices=("gamma", "dh"), required=True,
                      help="pair.gamma (D_1/D_2) or pair.dh (D_h/D_1)")
@@ -892,6 +914,9 @@ def parser() -> argparse.ArgumentParser:
     bis.add_argument("--max-t-end", type=float, metavar="S",
                      help="the longest run.t_end (s) a point may need to settle (default: 8 "
                      "times the first)")
+    bis.add_argument("--max-above", type=float, metavar="D",
+                     help="the largest window.above (in D_1) a point may need to hold both "
+                     "particles (default: 4 times the first, the scene's or --set's)")
     bis.add_argument("--exe", default=None, help="the dktlbm executable (as for plan)")
     with_out(bis)
     bis.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -931,8 +956,19 @@ def _bisect_command(args: argparse.Namespace) -> int:
     max_t_end = args.max_t_end if args.max_t_end is not None else 8 * t_end
     if max_t_end < t_end:
         raise SweepError(f"--max-t-end {max_t_end:g} is below run.t_end = {t_end:g} s")
+    text = _scene_setting(base, args.sets, "window.above")
+    try:
+        above = float(text.lower().replace("d", "e")) if text else WINDOW_ABOVE
+    except ValueError:
+        above = math.nan
+    if not (math.isfinite(above) and above >= 1):
+        raise SweepError(f"{base}: &window above is not a number >= 1 ({text!r}); set it with "
+                         f"--set window.above=D (in D_1)")
+    max_above = args.max_above if args.max_above is not None else 4 * above
+    if not max_above >= above:
+        raise SweepError(f"--max-above {max_above:g} is below window.above = {above:g} D_1")
     cfg = BisectSettings(base, args.key, lo, hi, args.tol, list(args.sets), args.out.resolve(),
-                         args.exe or default_exe(), t_end, max_t_end)
+                         args.exe or default_exe(), t_end, max_t_end, above, max_above)
     if args.slurm:
         launch = slurm_launcher(cfg.out, args.ntasks, args.time, args.partition, args.setup)
     else:

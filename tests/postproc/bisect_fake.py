@@ -5,11 +5,14 @@ name>.h5 after the output contract (/run, /particles, /diagnostics with its epis
 log with a `performance:` line, for a pair whose pattern is a known function of V and T:
 
 - V >= THRESHOLD: one kissing episode, at 1.0 s ('once');
-- V < THRESHOLD: two, at 1.0 s and at 1.5 s, or at 3.0 s when THRESHOLD - V < LATE_BAND (the
-  second kiss comes late near the threshold: with T = 4 the pattern is 'once' by T/2 and
-  'repeated' by T, not settled; with T = 8 it is settled);
-- V >= ESCAPE: the run ends at 0.75 T by window_escape, the lower particle sinking faster
-  (separating for good); V >= STUCK_ESCAPE: the same, but the upper particle sinks faster;
+- V < THRESHOLD: two, at 1.0 s and at 1.5 s, or at 6.0 s when THRESHOLD - V < LATE_BAND (the
+  second kiss comes late near the threshold, and the upper particle gains on the lower one
+  from the start: with T = 4 the pattern is 'once' by T/2 and by T, with the pair closing in,
+  not settled; with T = 8 it is 'repeated');
+- otherwise the upper particle sinks slower than the lower one (separating);
+- V >= ESCAPE: the upper particle leaves the window at 0.75 T A / 30 (A = window.above, in
+  D_1, default 15) when that is before T: by window_escape at 0.375 T with A = 15, at
+  0.75 T with A = 30; with A = 60 the run finishes;
 - V >= GUARD: stopped by a guard at 0.5 T, exit status 3.
 
 An episode counts when it starts within the run. The environment may move THRESHOLD
@@ -28,7 +31,6 @@ import numpy as np
 THRESHOLD = 1.37
 LATE_BAND = 0.1
 ESCAPE = 1.9
-STUCK_ESCAPE = 5.0
 GUARD = 10.0
 DT = 0.01  # s, the time step written to /run
 SAMPLE = 0.05  # s
@@ -42,30 +44,34 @@ def settings(argv: list[str]) -> dict[str, str]:
     }
 
 
-def behaviour(value: float, t_end: float) -> tuple[list[float], str, float, float]:
+def late(value: float) -> bool:
+    """Whether the second kiss comes late (the band below the threshold)."""
+    return 0 < float(os.environ.get("FAKE_THRESHOLD", THRESHOLD)) - value < LATE_BAND
+
+
+def behaviour(value: float, t_end: float, above: float) -> tuple[list[float], str, float, float]:
     """(episode starts, stop_reason, time the run ends, velocity of the upper particle)."""
     threshold = float(os.environ.get("FAKE_THRESHOLD", THRESHOLD))
     if value >= threshold:
         starts = [1.0]
     else:
-        starts = [1.0, 3.0 if threshold - value < LATE_BAND else 1.5]
-    reason, t_stop, v_upper = "finished", t_end, -0.8
+        starts = [1.0, 6.0 if late(value) else 1.5]
+    reason, t_stop, v_upper = "finished", t_end, -1.05 if late(value) else -0.8
     if value >= GUARD:
         reason, t_stop = "guard: non-finite velocity", 0.5 * t_end
-    elif value >= ESCAPE:
-        reason, t_stop = "window_escape", 0.75 * t_end
-        v_upper = -1.2 if value >= STUCK_ESCAPE else -0.8
+    elif value >= ESCAPE and 0.75 * t_end * above / 30.0 < t_end:
+        reason, t_stop = "window_escape", 0.75 * t_end * above / 30.0
     return [s for s in starts if s <= t_stop], reason, t_stop, v_upper
 
 
-def write(out: Path, name: str, key: str, value: float, t_end: float) -> int:
-    starts, reason, t_stop, v_upper = behaviour(value, t_end)
+def write(out: Path, name: str, key: str, value: float, t_end: float, above: float) -> int:
+    starts, reason, t_stop, v_upper = behaviour(value, t_end, above)
     out.mkdir(parents=True, exist_ok=True)
     t = np.arange(0.0, t_stop + 1e-9, SAMPLE)
     n = t.size
     d1, d2 = 0.2, 0.1
     y_low = 10.0 - 1.0 * t  # the lower particle sinks at 1 cm/s
-    y_up = 10.5 + v_upper * t
+    y_up = 10.6 + v_upper * t
     series = {
         "x": np.ones((n, 2)),
         "y": np.stack([y_up, y_low], axis=1),
@@ -129,6 +135,7 @@ def main(argv: list[str]) -> int:
         key,
         float(s[f"pair.{key}"]),
         float(s["run.t_end"]),
+        float(s.get("window.above", 15.0)),
     )
 
 

@@ -1,11 +1,12 @@
 """postproc/sweep.py bisect: the threshold search over pair.gamma or pair.dh.
 
 Most tests run the search against a stand-in program (bisect_fake.py) whose pattern is a known
-step function of the value (threshold 1.37; near it the second kiss comes late, so the pattern
-at t_end = 4 s is not settled and needs t_end = 8 s), called in-process, through `sweep.py
-bisect` with a stand-in mpiexec, and through Slurm stand-ins (sbatch --wait running the array
-tasks under bash, srun executing its arguments). One test bisects a real coarse scene. Each
-test's docstring says what it proves."""
+step function of the value (threshold 1.37; just below it the second kiss comes late, so the
+pattern at t_end = 4 s is 'once' with the pair closing in, not settled, and needs t_end = 8 s;
+from 1.9 on the upper particle leaves the window unless window.above is 60), called in-process,
+through `sweep.py bisect` with a stand-in mpiexec, and through Slurm stand-ins (sbatch --wait
+running the array tasks under bash, srun executing its arguments). One test bisects a real
+coarse scene. Each test's docstring says what it proves."""
 
 from __future__ import annotations
 
@@ -54,23 +55,41 @@ def settings(
     tol: float = 0.01,
     max_t_end: float = 32.0,
     sets: list[str] | None = None,
+    max_above: float = 60.0,
 ) -> sweep.BisectSettings:
     return sweep.BisectSettings(
-        base.resolve(), "gamma", lo, hi, tol, sets or [], out.resolve(), str(FAKE), T_END, max_t_end
+        base.resolve(),
+        "gamma",
+        lo,
+        hi,
+        tol,
+        sets or [],
+        out.resolve(),
+        str(FAKE),
+        T_END,
+        max_t_end,
+        15.0,
+        max_above,
     )
 
 
 class FakeLaunch:
-    """Runs the stand-in in-process; records each call as [(value, t_end), ...]."""
+    """Runs the stand-in in-process; records each call as [(value, t_end, above), ...]."""
 
     def __init__(self) -> None:
-        self.calls: list[list[tuple[float, float]]] = []
+        self.calls: list[list[tuple[float, float, float]]] = []
 
     def __call__(self, todo: list[sweep.PlannedRun], every: list[sweep.PlannedRun]) -> None:
         call = []
         for r in todo:
             s = fake.settings(r.args)
-            call.append((float(s["pair.gamma"]), float(s["run.t_end"])))
+            call.append(
+                (
+                    float(s["pair.gamma"]),
+                    float(s["run.t_end"]),
+                    float(s.get("window.above", 15.0)),
+                )
+            )
             fake.main(r.args[1:])
         self.calls.append(call)
 
@@ -86,19 +105,18 @@ def expected_points(width: float, tol: float, jobs: int) -> list[int]:
     return steps
 
 
-def late(value: float) -> bool:
-    return 0 < fake.THRESHOLD - value < fake.LATE_BAND
-
-
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_search_brackets_the_threshold_and_extends_unsettled_points(
     tmp_path: Path, base: Path, jobs: int
 ) -> None:
     """The bracket contains the stand-in's threshold 1.37, is at most --tol wide, with
-    'repeated' below and 'once' above; lo = 1 and hi = 2 run first in one call (hi ends by
-    window_escape, separating, which settles it); each step runs min(jobs, needed) new points
-    (with --jobs 2 fewer steps than with --jobs 1); every point in the late band is run at
-    t_end 4 (not settled) and again at 8 (settled), every other point once at 4."""
+    'repeated' below and 'once' above; lo = 1 and hi = 2 run first in one call. hi leaves the
+    window with window.above = 15 and 30, which settles nothing, and is run again with the
+    window doubled each time until it finishes at 60, settled. Each step runs min(jobs,
+    needed) new points (with --jobs 2 fewer steps than with --jobs 1). Every point in the late
+    band is run at t_end 4 ('once' by t_end/2 and by t_end, but closing in: not settled) and
+    again at 8 ('repeated', settled although it was 'once' by t_end/2: episodes only add);
+    every other point once at 4."""
     launch = FakeLaunch()
     b, summary = sweep.bisect(settings(base, tmp_path / "b"), jobs, launch)
     rows = [r for r in csv.DictReader((tmp_path / "b" / "bisect.csv").open())]
@@ -111,20 +129,25 @@ def test_search_brackets_the_threshold_and_extends_unsettled_points(
         f"gamma threshold between {lo[0]['value']} (repeated) and {hi[0]['value']} (once), "
     )
 
-    fresh = [c for c in launch.calls if all(t == T_END for _, t in c)]
-    assert sorted(fresh[0]) == [(1.0, T_END), (2.0, T_END)]
+    fresh = [c for c in launch.calls if all(t == T_END and a == 15.0 for _, t, a in c)]
+    assert sorted(fresh[0]) == [(1.0, T_END, 15.0), (2.0, T_END, 15.0)]
+    assert launch.calls[1:3] == [[(2.0, T_END, 30.0)], [(2.0, T_END, 60.0)]]
     assert [len(c) for c in fresh[1:]] == expected_points(1.0, 0.01, jobs)
     assert len(fresh) - 1 == (7 if jobs == 1 else 5)
 
     runs = [r for r in rows if r["row"] == "run"]
     values = {float(r["value"]) for r in runs}
-    assert sum(1 for v in values if late(v)) >= 1, "the test must exercise an extension"
-    for v in values:
+    assert sum(1 for v in values if fake.late(v)) >= 1, "the test must exercise an extension"
+    for v in values - {2.0}:
         mine = sorted((float(r["t_end"]), r["settled"]) for r in runs if float(r["value"]) == v)
-        assert mine == ([(4.0, "no"), (8.0, "yes")] if late(v) else [(4.0, "yes")]), v
+        assert mine == ([(4.0, "no"), (8.0, "yes")] if fake.late(v) else [(4.0, "yes")]), v
+        if fake.late(v):
+            assert [r["pattern"] for r in runs if float(r["value"]) == v] == ["once", "repeated"]
     assert summary.endswith(f", {len(runs)} runs")
-    escaped = [r for r in runs if r["value"] == "2"]
-    assert escaped[0]["status"] == "window_escape" and escaped[0]["settled"] == "yes"
+    escaped = [(r["status"], r["settled"], r["above"]) for r in runs if r["value"] == "2"]
+    assert escaped == [("window_escape", "no", "15"), ("window_escape", "no", "30"),
+                       ("finished", "yes", "60")]  # fmt: skip
+    assert [Path(r["dir"]).name for r in runs if r["value"] == "2"] == ["g2", "g2_a30", "g2_a60"]
 
 
 def test_rerun_reuses_runs_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
@@ -151,16 +174,16 @@ def test_rerun_reuses_runs_and_refuses_other_settings(tmp_path: Path, base: Path
 
 def test_refusals_name_the_problem(tmp_path: Path, base: Path) -> None:
     """Ends with the same pattern are refused naming both patterns (after the two runs only);
-    a point not settled within --max-t-end, a run that left the window while the upper
-    particle still gained on the lower one, and a run stopped by a guard each stop the
-    search with a message naming the run's directory and the reason."""
+    a point not settled within --max-t-end, a point that still leaves the window at
+    --max-above, and a run stopped by a guard each stop the search with a message naming the
+    run's directory and the reason."""
     launch = FakeLaunch()
     with pytest.raises(sweep.SweepError, match="same pattern, once and once"):
         sweep.bisect(settings(base, tmp_path / "same", lo=1.5, hi=1.8), 1, launch)
     assert len(launch.calls) == 1 and len(launch.calls[0]) == 2
     cases = [
         (dict(lo=1.3, hi=1.5, max_t_end=4.0), "g1.3.*--max-t-end 4"),
-        (dict(lo=1.0, hi=6.0), "g6.*left the window.*window.above"),
+        (dict(lo=1.0, hi=2.0, max_above=30.0), "g2_a30.*left the window.*--max-above 30"),
         (dict(lo=1.0, hi=12.0), "g12.*guard"),
     ]
     for k, (kw, pattern) in enumerate(cases):
@@ -292,11 +315,14 @@ def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -
 
 
 def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
-    """A real bisection: input/case2.nml at 8 spacings per smaller diameter, no fields,
-    across D_h/D_1 in [2, 2.5] (kissing once at 2, never at 2.5) to 0.25 with 2 runs at a
-    time: the two ends of the bracket have the two different patterns (each settled, as
-    bisect.csv says), it is at most 0.25 wide, and pattern.py reads the same pattern from
-    each end's run file."""
+    """A real bisection: input/case2.nml at 8 spacings per smaller diameter, no fields, to its
+    t_end of 8 s (t* = 59: the rules' verdicts at this end time, a check of the machinery,
+    not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time. D_h = 2 kisses once;
+    at 5 the upper disk leaves the 15-D_1 window, so the point is run again with
+    window.above = 30, where it finishes with 'never'. The two ends of the bracket have
+    different patterns, each settled (bisect.csv), each run that left the window was
+    followed by one with the window doubled, the bracket is at most 1.5 wide, and pattern.py
+    reads the same pattern from each end's run file."""
     out = tmp_path / "real"
     t0 = time.monotonic()
     proc = sweep_cli(
@@ -307,9 +333,9 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
         "--lo",
         "2",
         "--hi",
-        "2.5",
+        "5",
         "--tol",
-        "0.25",
+        "1.5",
         "--set",
         "lbm.cells_per_diameter=8",
         "--set",
@@ -331,8 +357,15 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
     (lo,), (hi,) = [r for r in rows if r["row"] == "lo"], [r for r in rows if r["row"] == "hi"]
     assert lo["pattern"] != hi["pattern"]
     assert {lo["pattern"], hi["pattern"]} <= {"repeated", "once", "never"}
-    assert float(hi["value"]) - float(lo["value"]) <= 0.25
+    assert float(hi["value"]) - float(lo["value"]) <= 1.5
     assert lo["settled"] == hi["settled"] == "yes"
+    runs = [r for r in rows if r["row"] == "run"]
+    escaped = [r for r in runs if r["status"] == "window_escape"]
+    assert escaped, "the test must exercise a window escape"
+    for r in escaped:
+        assert r["settled"] == "no"
+        bigger = [q for q in runs if q["value"] == r["value"] and q["t_end"] == r["t_end"]]
+        assert str(2 * int(r["above"])) in [q["above"] for q in bigger]
     for end in (lo, hi):
         h5 = Path(end["dir"]) / "case2.h5"
         report = subprocess.run(

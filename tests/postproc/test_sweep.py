@@ -207,10 +207,11 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
     assert [r["pattern"] for r in rows] == ["repeated", "once", "never", "once", "failed",
                                             "missing"]
     assert [r["episodes"] for r in rows] == ["2", "1", "0", "1", "", ""]
-    # the columns after `dir`: the runs end at 3 s, so the second kiss of the first (1.94 s)
-    # comes after t_end/2: its 'repeated' is not settled; no run left a window
+    # the columns after `dir`: the runs end at 3 s; the second kiss of the first (1.94 s) comes
+    # after t_end/2, but 'repeated' is final once reached (episodes only add); the others'
+    # pairs are not closing in at the end; no run left a window
     assert [r["status"] for r in rows] == ["finished"] * 4 + ["failed", "missing"]
-    assert [r["settled"] for r in rows] == ["no", "yes", "yes", "yes", "", ""]
+    assert [r["settled"] for r in rows] == ["yes", "yes", "yes", "yes", "", ""]
     assert [r["left_window"] for r in rows] == ["no"] * 5 + [""]
     assert [r["t_end"] for r in rows[:4]] == ["3"] * 4
     assert float(rows[0]["first_kiss_t"]) == pytest.approx(0.96)
