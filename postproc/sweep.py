@@ -789,10 +789,16 @@ def write_regime(rows: list[dict[str, str]], out: Path, pdf: bool) -> list[Path]
     ax = fig.subplots()
     placed = [r for r in rows if r["gamma"] and r["dh"]]
     for pattern, (marker, colour) in STYLE.items():
-        pts = [(float(r["dh"]), float(r["gamma"])) for r in placed if r["pattern"] == pattern]
-        if pts:
+        for settled in (False, True):
+            pts = [(float(r["dh"]), float(r["gamma"])) for r in placed
+                   if r["pattern"] == pattern and (r.get("settled") == "no") != settled]
+            if not pts:
+                continue
             xs, ys = zip(*pts, strict=True)
-            ax.scatter(xs, ys, marker=marker, color=colour, s=60, label=f"{pattern} ({len(pts)})")
+            label = f"{pattern} ({len(pts)})" if settled else f"{pattern}, not settled ({len(pts)})"
+            ax.scatter(xs, ys, marker=marker, s=60 if settled else 110, label=label, zorder=3,
+                       **({"color": colour} if settled else {"facecolors": "none",
+                                                             "edgecolors": colour}))
     dhs = [float(r["dh"]) for r in placed]
     if dhs and min(dhs) > 0 and max(dhs) / min(dhs) > 10:
         ax.set_xscale("log")
@@ -886,6 +892,9 @@ def parser() -> argparse.ArgumentParser:
         "pattern, episodes, first_kiss_t, dir; pattern missing or failed without a finished "
         "run file) and draw DIR/regime.png: D_h/D_1 across, gamma up, one marker per pattern.")
     with_out(coll)
+    coll.add_argument("--with", dest="also", action="append", default=[], type=Path,
+                      metavar="DIR2", help="also the runs of this sweep or bisection directory "
+                      "(repeatable): one table and one map of all of them, written to DIR")
     coll.add_argument("--pdf", action="store_true", help="also write DIR/regime.pdf")
 
     bis = sub.add_parser(
@@ -1020,6 +1029,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         tasks = f"{len(plan)} array task{'s' if len(plan) != 1 else ''}"
         print(f"wrote {script}: {tasks}; submit with: sbatch {script}")
         return 0
+    for other in args.also:
+        plan += read_plan(other)
     rows = collect(plan)
     for path in write_regime(rows, out, args.pdf):
         print(f"wrote {path}")

@@ -176,7 +176,9 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
     it), the number of episodes and the first kissing time; 'failed' for a file that is not
     a finished run, 'missing' for a run without a file; after the original columns, the
     status, t_end, whether the pattern is settled (episodes by t_end/2 give the same
-    pattern) and whether a particle left the window; regime.png is drawn."""
+    pattern) and whether a particle left the window; regime.png is drawn. With --with DIR2
+    the runs of another directory are added after them; a --with directory without a plan is
+    refused."""
     out = tmp_path / "sw"
     assert sweep_cli("plan", base, "--gamma", "1:3:1", "--dh", "2,4", "--out",
                      out).returncode == 0
@@ -221,6 +223,21 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
     assert [Path(r["dir"]).name for r in rows] == [p["id"] for p in plan]
     png = out / "regime.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 2000
+
+    # --with: a second directory's runs join the table and the map written to the first
+    other = tmp_path / "sw2"
+    assert sweep_cli("plan", base, "--gamma", "1.5", "--dh", "3", "--out",
+                     other).returncode == 0
+    syn.write_run(other / "g1.5_h3" / "pairscene.h5", k["never"], fields=False,
+                  diagnostics=written("never", []))
+    proc = sweep_cli("collect", "--out", out, "--with", other)
+    assert proc.returncode == 0, proc.stderr
+    both = read_csv(out / "regime.csv")
+    assert both[:6] == rows
+    assert [(r["gamma"], r["dh"], r["pattern"], Path(r["dir"]).parent.name) for r in both[6:]] \
+        == [("1.5", "3", "never", "sw2")]
+    proc = sweep_cli("collect", "--out", out, "--with", tmp_path / "nothing")
+    assert proc.returncode == 2 and "nothing" in proc.stderr
 
 
 UHLMANN_SETS = ["lbm.dx=0.025", "lbm.tau=0.52", "run.t_end=0.05",
