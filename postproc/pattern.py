@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dktread import Pair, fmt, guarded, open_run, pair_of
+from dktread import Pair, RunFileError, fmt, guarded, open_run, pair_of
 
 
 def parser() -> argparse.ArgumentParser:
@@ -41,7 +41,32 @@ def parser() -> argparse.ArgumentParser:
                    help="an episode ends at D_r > N lattice spacings (and --release-d1)")
     p.add_argument("--release-d1", type=float, metavar="F",
                    help="an episode ends at D_r > F D_1 (and --release-cells)")
+    p.add_argument("--terminal", type=float, metavar="TSTAR",
+                   help="also each particle's terminal Reynolds number: the mean of Re = "
+                   "rho_f |U| D_p / mu over t* >= TSTAR, with its range there (refused when "
+                   "the run ends before TSTAR)")
     return p
+
+
+def terminal(pair: Pair, from_tstar: float) -> dict[str, Any]:
+    """Each particle's Re over t* >= from_tstar: mean, min, max and the number of samples.
+    A run that ended by window_escape lost its upper particle there, so its values are those
+    up to the escape (the report's stop_reason says so)."""
+    tstar = pair.tstar
+    keep = tstar >= from_tstar
+    if keep.sum() < 2:
+        raise RunFileError(pair.run.path, f"the run ends at t* = {tstar[-1]:.4g}, before "
+                           f"--terminal {from_tstar:g}: nothing to average")
+    re = pair.re[keep]
+    return {
+        "from_tstar": from_tstar,
+        "to_tstar": float(tstar[-1]),
+        "samples": int(keep.sum()),
+        "re_mean": [float(x) for x in re.mean(axis=0)],
+        "re_min": [float(x) for x in re.min(axis=0)],
+        "re_max": [float(x) for x in re.max(axis=0)],
+        "diameter": [float(d) for d in pair.run.diameters[:2]],
+    }
 
 
 def _num(x: float) -> float | None:
@@ -117,6 +142,14 @@ def text(r: dict[str, Any]) -> str:
     if not r["complete"]:
         lines.append(f"  incomplete: the run stopped early ({r['stop_reason']}); the pattern "
                      f"covers t <= {_s(r['t_end'])} s only")
+    if "terminal" in r:
+        t = r["terminal"]
+        lines.append(f"  terminal Reynolds numbers, mean over t* = {t['from_tstar']:.4g} .. "
+                     f"{t['to_tstar']:.4g} ({t['samples']} samples; range):")
+        for k in range(2):
+            lines.append(f"    particle {k + 1} (D = {_s(t['diameter'][k])} cm): Re = "
+                         f"{t['re_mean'][k]:.4g} ({t['re_min'][k]:.4g} .. "
+                         f"{t['re_max'][k]:.4g})")
     for k, e in enumerate(r["kissing"], 1):
         gap, gap_d1 = _s(e["min_gap"]), _s(e["min_gap_d1"], 3)
         lines.append(
@@ -137,7 +170,10 @@ def main(argv: list[str] | None = None) -> int:
     given = {k: v for k, v in limits.items() if v is not None}
 
     def body() -> int:
-        r = report(pair_of(open_run(args.run, need_particles=2), given or None))
+        pair = pair_of(open_run(args.run, need_particles=2), given or None)
+        r = report(pair)
+        if args.terminal is not None:
+            r["terminal"] = terminal(pair, args.terminal)
         print(json.dumps(r, indent=2) if args.json else text(r))
         return 0
 

@@ -236,6 +236,31 @@ def test_pattern_cli_text_and_json(tmp_path: Path) -> None:
         assert got["min_gap_d1"] == pytest.approx(0.005 / 0.2, abs=1e-8)
 
 
+def test_pattern_terminal_reynolds_numbers(tmp_path: Path) -> None:
+    """--terminal T*: each particle's Re = rho_f |U| D_p / mu averaged over t* >= T*, with its
+    range there, equal to the same average computed here from the file's velocities (the two
+    disks' values differ: D = 0.2 and 0.1 cm); a T* after the run's end is refused (exit 2,
+    naming the option)."""
+    f = tmp_path / "rep.h5"
+    series = syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1), rho=1.0, mu=0.01)
+    t_ref = 0.135526
+    start = 0.5 * syn.T_END / t_ref
+    proc = script("pattern", f, "--json", "--terminal", f"{start}")
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)["terminal"]
+    keep = syn.T / t_ref >= start
+    speed = np.hypot(series["u"], series["v"])[keep]
+    for k, d in enumerate((0.2, 0.1)):
+        re = 1.0 * speed[:, k] * d / 0.01
+        assert got["re_mean"][k] == pytest.approx(re.mean(), rel=1e-12)
+        assert (got["re_min"][k], got["re_max"][k]) == pytest.approx((re.min(), re.max()))
+    assert got["samples"] == int(keep.sum()) and got["re_mean"][0] != got["re_mean"][1]
+    text = script("pattern", f, "--terminal", f"{start}").stdout
+    assert "terminal Reynolds numbers" in text and "particle 2 (D = 0.1 cm): Re = " in text
+    late = script("pattern", f, "--terminal", f"{2 * syn.T_END / t_ref}")
+    assert late.returncode == 2 and "--terminal" in late.stderr
+
+
 def test_pattern_uses_diagnostics_as_written_unless_thresholds_are_given(tmp_path: Path) -> None:
     """A file with /diagnostics is reported as written: here the program's thresholds were
     0.03/0.3 cm, under which the two-dip gap is one episode ('once'), and that is what
