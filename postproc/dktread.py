@@ -133,7 +133,8 @@ def parse_namelist(text: str) -> dict[str, dict[str, list[str]]]:
     return groups
 
 
-def _fortran_float(text: str) -> float:
+def fortran_float(text: str) -> float:
+    """A Fortran real literal (1.5, 2e3, 1.0d-2) as a float; ValueError when it is not one."""
     return float(text.lower().replace("d", "e"))
 
 
@@ -143,7 +144,7 @@ def nml_float(nml: dict[str, dict[str, list[str]]], group: str, key: str, defaul
     values = nml.get(group, {}).get(key, [])
     if index < len(values) and values[index] != "":
         try:
-            return _fortran_float(values[index])
+            return fortran_float(values[index])
         except ValueError:
             return default
     return default
@@ -153,7 +154,7 @@ def nml_floats(nml: dict[str, dict[str, list[str]]], group: str, key: str) -> li
     out = []
     for v in nml.get(group, {}).get(key, []):
         try:
-            out.append(_fortran_float(v))
+            out.append(fortran_float(v))
         except ValueError:
             out.append(math.nan)
     return out

@@ -41,7 +41,18 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from dktread import RunFileError, guarded, open_run, pair_of, parse_namelist, run_status
+from dktread import (
+    RunFileError,
+    fortran_float,
+    guarded,
+    open_h5,
+    open_run,
+    pair_of,
+    parse_namelist,
+    pattern_name,
+    run_status,
+    stop_reason,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS_CSV = "runs.csv"
@@ -147,20 +158,33 @@ def _fmt(value: float) -> str:
     return f"{value:g}"
 
 
+def _scene_setting(base: Path, sets: list[str], dotted: str) -> str | None:
+    """The text of group.key (dotted) as the run will see it: the last --set of it, else the
+    scene file's; None when neither gives it."""
+    group, _, key = dotted.partition(".")
+    given = [s.partition("=")[2] for s in sets if s.partition("=")[0].strip().lower() == dotted]
+    if given:
+        return given[-1].strip()
+    try:
+        found = parse_namelist(base.read_text()).get(group, {}).get(key, [])
+    except (OSError, UnicodeDecodeError):
+        return None
+    return found[0] if found else None
+
+
+def _scene_number(base: Path, sets: list[str], dotted: str) -> tuple[float | None, str | None]:
+    """group.key (dotted) as the run will see it (_scene_setting), as a number, and its text:
+    (None, text) when the text is not a number, (None, None) when nothing gives it."""
+    text = _scene_setting(base, sets, dotted)
+    try:
+        return (fortran_float(text) if text is not None else None), text
+    except ValueError:
+        return None, text
+
+
 def _base_value(base: Path, sets: list[str], key: str) -> float | None:
     """pair.<key> as the run will see it: from --set, else from the scene file."""
-    for s in reversed(sets):
-        k, _, v = s.partition("=")
-        if k.strip().lower() == f"pair.{key}":
-            try:
-                return float(v.lower().replace("d", "e"))
-            except ValueError:
-                return None
-    try:
-        values = parse_namelist(base.read_text()).get("pair", {}).get(key, [])
-        return float(values[0].lower().replace("d", "e")) if values else None
-    except (OSError, ValueError, UnicodeDecodeError):
-        return None
+    return _scene_number(base, sets, f"pair.{key}")[0]
 
 
 def make_plan(base: Path, gammas: list[float] | None, dhs: list[float] | None,
@@ -392,6 +416,8 @@ class Verdict:
     end_t: float = math.nan  # s, its last sample
     settled: bool = False
     why: str = ""
+    gamma: float | None = None  # the pair's, as the run file gives them
+    dh: float | None = None
 
     @property
     def classified(self) -> bool:
@@ -417,8 +443,6 @@ def closing_in(pair) -> tuple[bool, str]:
 
 def verdict(h5: Path) -> Verdict:
     """The Verdict of the run file `h5` (see Verdict)."""
-    from dktread import open_h5, pattern_name, stop_reason
-
     status = run_status(h5)
     if status == "missing":
         return Verdict("missing", why="no run file")
@@ -440,7 +464,8 @@ def verdict(h5: Path) -> Verdict:
     starts = [e.start for e in pair.episodes]
     half = pattern_name(sum(1 for s in starts if s <= 0.5 * t_end * (1 + 1e-12)))
     v = Verdict(reason if reason == "window_escape" else "finished", pair.pattern, half,
-                len(starts), starts[0] if starts else None, t_end, end_t)
+                len(starts), starts[0] if starts else None, t_end, end_t, gamma=pair.gamma,
+                dh=pair.dh)
     closing, state = closing_in(pair)
     if pair.pattern == "repeated":
         v.settled = True
@@ -474,20 +499,6 @@ def wall_seconds(r: PlannedRun) -> float | None:
 def _value(x: float) -> float:
     """A value as the runs see it: 8 significant digits (the run id and the --set text)."""
     return float(f"{x:.8g}")
-
-
-def _scene_setting(base: Path, sets: list[str], dotted: str) -> str | None:
-    """The text of group.key (dotted) as the run will see it: the last --set of it, else the
-    scene file's; None when neither gives it."""
-    group, _, key = dotted.partition(".")
-    given = [s.partition("=")[2] for s in sets if s.partition("=")[0].strip().lower() == dotted]
-    if given:
-        return given[-1].strip()
-    try:
-        found = parse_namelist(base.read_text()).get(group, {}).get(key, [])
-    except (OSError, UnicodeDecodeError):
-        return None
-    return found[0] if found else None
 
 
 @dataclass
@@ -738,16 +749,16 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
         status = run_status(r.h5)
         if status == "failed" and r.h5.with_suffix(".checkpoint").is_file():
             status = "stopped"
+        v = verdict(r.h5)  # the run file is read once, here
         gamma, dh = r.gamma, r.dh
         pattern, episodes, first = status, "", ""
         if status == "finished":
-            try:
-                pair = pair_of(open_run(r.h5, need_particles=2))
-                pattern, episodes = pair.pattern, str(len(pair.episodes))
-                first = f"{pair.episodes[0].start:.6g}" if pair.episodes else ""
-                gamma = gamma if gamma is not None else pair.gamma
-                dh = dh if dh is not None else pair.dh
-            except RunFileError:
+            if v.classified:
+                pattern, episodes = v.pattern, str(v.episodes)
+                first = f"{v.first_kiss:.6g}" if v.first_kiss is not None else ""
+                gamma = gamma if gamma is not None else v.gamma
+                dh = dh if dh is not None else v.dh
+            else:
                 pattern = "failed"
         rows.append({
             "gamma": "" if gamma is None else _fmt(gamma),
@@ -756,19 +767,18 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
             "episodes": episodes,
             "first_kiss_t": first,
             "dir": str(r.dir),
-            **_settling_columns(r, pattern),
+            **_settling_columns(v, pattern),
         })
     return rows
 
 
-def _settling_columns(r: PlannedRun, pattern: str) -> dict[str, str]:
+def _settling_columns(v: Verdict, pattern: str) -> dict[str, str]:
     """regime.csv's last columns: status (finished, window_escape, or why the run stopped),
     t_end (s, the run's planned end), settled (yes/no: the bisect rule, Verdict), left_window
     (yes when a particle left the window: the run ended early and only the particle still in
-    it has late-time values)."""
+    it has late-time values), from the run's Verdict `v`."""
     if pattern == "missing":
         return {"status": "missing", "t_end": "", "settled": "", "left_window": ""}
-    v = verdict(r.h5)
     classified = v.classified and pattern in ("repeated", "once", "never")
     return {"status": v.status,
             "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
@@ -954,23 +964,16 @@ def _bisect_command(args: argparse.Namespace) -> int:
     if args.jobs < 1 or args.ranks < 1 or args.ntasks < 1:
         raise SweepError("--jobs, --ranks and --ntasks must be at least 1")
     base = args.base.resolve()
-    text = _scene_setting(base, args.sets, "run.t_end")
-    try:
-        t_end = float(text.lower().replace("d", "e")) if text else math.nan
-    except ValueError:
-        t_end = math.nan
-    if not (math.isfinite(t_end) and t_end > 0):
+    t_end, text = _scene_number(base, args.sets, "run.t_end")
+    if not (t_end is not None and math.isfinite(t_end) and t_end > 0):
         raise SweepError(f"{base}: &run t_end is not given (or not a positive number: "
                          f"{text!r}); the settling rule needs it: --set run.t_end=SECONDS")
     max_t_end = args.max_t_end if args.max_t_end is not None else 8 * t_end
     if max_t_end < t_end:
         raise SweepError(f"--max-t-end {max_t_end:g} is below run.t_end = {t_end:g} s")
-    text = _scene_setting(base, args.sets, "window.above")
-    try:
-        above = float(text.lower().replace("d", "e")) if text else WINDOW_ABOVE
-    except ValueError:
-        above = math.nan
-    if not (math.isfinite(above) and above >= 1):
+    above, text = _scene_number(base, args.sets, "window.above")
+    above = WINDOW_ABOVE if not text else above
+    if not (above is not None and math.isfinite(above) and above >= 1):
         raise SweepError(f"{base}: &window above is not a number >= 1 ({text!r}); set it with "
                          f"--set window.above=D (in D_1)")
     max_above = args.max_above if args.max_above is not None else 4 * above
