@@ -253,10 +253,12 @@ def read_plan(out: Path) -> list[PlannedRun]:
 # ---------------------------------------------------------------- run here
 
 
-def launcher(ranks: int) -> tuple[list[str], dict[str, str]]:
+def launcher(ranks: int, jobs: int = 1) -> tuple[list[str], dict[str, str]]:
     """The MPI launch prefix (MPIEXEC, default mpiexec) and environment: Open MPI as root
     needs the two OMPI_ALLOW_RUN_AS_ROOT variables, and --oversubscribe for more ranks than
-    cores."""
+    cores. With several runs at a time, Open MPI's own binding is switched off (unless the
+    environment sets a policy): each mpiexec binds its ranks from the first core on, without
+    knowing of the others, so two one-rank runs would share core 0 and leave core 1 idle."""
     mpiexec = os.environ.get("MPIEXEC") or "mpiexec"
     env = dict(os.environ)
     prefix = [mpiexec, "-n", str(ranks)]
@@ -268,6 +270,8 @@ def launcher(ranks: int) -> tuple[list[str], dict[str, str]]:
         text = ""
     if "Open MPI" in text or "OpenRTE" in text or "open-mpi" in text:
         prefix.append("--oversubscribe")
+    if jobs > 1:
+        env.setdefault("OMPI_MCA_hwloc_base_binding_policy", "none")
     if hasattr(os, "geteuid") and os.geteuid() == 0:
         env["OMPI_ALLOW_RUN_AS_ROOT"] = "1"
         env["OMPI_ALLOW_RUN_AS_ROOT_CONFIRM"] = "1"
@@ -277,7 +281,7 @@ def launcher(ranks: int) -> tuple[list[str], dict[str, str]]:
 def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
     """Run the plan, `jobs` runs at a time on `ranks` ranks each; the output of each goes to
     <dir>/run.log. Finished runs are skipped unless `force`. Returns the number of failures."""
-    prefix, env = launcher(ranks)
+    prefix, env = launcher(ranks, jobs)
     lock = threading.Lock()
 
     def say(text: str) -> None:

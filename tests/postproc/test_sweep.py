@@ -277,3 +277,38 @@ def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path
     assert "FAILED" in proc.stdout and "1 failed" in proc.stdout
     (row,) = read_csv(bad / "runs.csv")
     assert "tau" in (bad / row["id"] / "run.log").read_text()
+
+
+AFFINITY_PROBE = """#!{python}
+# stand-in for dktlbm: records the cores this rank may run on in <output.dir>/cores.txt
+import os, sys, time
+out = [a.split("=", 1)[1] for a in sys.argv if a.startswith("output.dir=")][-1]
+os.makedirs(out, exist_ok=True)
+with open(os.path.join(out, "cores.txt"), "w") as f:
+    f.write(" ".join(map(str, sorted(os.sched_getaffinity(0)))))
+time.sleep(1)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs two cores and sched_getaffinity")
+def test_runs_side_by_side_are_not_bound_to_the_same_core(tmp_path: Path, base: Path) -> None:
+    """`run --jobs 2 --ranks 1` with a stand-in program that records its cores: each run may use
+    every core this test may use. Open MPI binds a one-rank run to the first core by default,
+    so without the launcher's policy both runs would share core 0 and the sweep would take
+    twice as long (the environment's own binding policy is removed for this test)."""
+    probe = tmp_path / "probe.py"
+    probe.write_text(AFFINITY_PROBE.format(python=sys.executable))
+    probe.chmod(probe.stat().st_mode | stat.S_IXUSR)
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "1.5,2", "--out", out,
+                     "--exe", probe).returncode == 0
+    env = mpi_env()
+    env.pop("OMPI_MCA_hwloc_base_binding_policy", None)
+    proc = sweep_cli("run", "--out", out, "--jobs", "2", "--ranks", "1", env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    allowed = " ".join(map(str, sorted(os.sched_getaffinity(0))))
+    rows = read_csv(out / "runs.csv")
+    assert len(rows) == 2
+    for row in rows:
+        assert (out / row["id"] / "cores.txt").read_text() == allowed
