@@ -422,6 +422,7 @@ class Verdict:
     why: str = ""
     gamma: float | None = None  # the pair's, as the run file gives them
     dh: float | None = None
+    t_ref: float = math.nan  # s, t* = t / t_ref (the run file's)
 
     @property
     def classified(self) -> bool:
@@ -469,7 +470,7 @@ def verdict(h5: Path) -> Verdict:
     half = pattern_name(sum(1 for s in starts if s <= 0.5 * t_end * (1 + 1e-12)))
     v = Verdict(reason if reason == "window_escape" else "finished", pair.pattern, half,
                 len(starts), starts[0] if starts else None, t_end, end_t, gamma=pair.gamma,
-                dh=pair.dh)
+                dh=pair.dh, t_ref=run.t_ref)
     closing, state = closing_in(pair)
     if pair.pattern == "repeated":
         v.settled = True
@@ -772,6 +773,9 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
             "first_kiss_t": first,
             "dir": str(r.dir),
             **_settling_columns(v, pattern),
+            # for the map only (not a regime.csv column): how far the run got, in t*
+            "end_tstar": (f"{v.end_t / v.t_ref:.6g}" if pattern in STYLE and v.classified
+                          and math.isfinite(v.end_t / v.t_ref) else ""),
         })
     return rows
 
@@ -790,21 +794,41 @@ def _settling_columns(v: Verdict, pattern: str) -> dict[str, str]:
             "left_window": "yes" if v.status == "window_escape" else "no"}
 
 
+def regime_layout(placed: list[dict[str, str]]):
+    """How the regime map places runs (rows with gamma and dh): returns (line, point). Along
+    one key (a bisection, or a sweep of gamma at one D_h or of D_h at one gamma), line is that
+    key and point(row) = (its value, how far the run got in t*), so the runs of one point
+    (longer, or with a taller window) stand apart; a run without a pattern (failed, missing)
+    sits at t* = 0. Otherwise line is None and point(row) = (D_h/D_1, gamma)."""
+    line = next((k for k, other in (("gamma", "dh"), ("dh", "gamma"))
+                 if len({float(r[k]) for r in placed}) > 1
+                 and len({float(r[other]) for r in placed}) == 1), None)
+
+    def point(r: dict[str, str]) -> tuple[float, float]:
+        if line is not None:
+            return float(r[line]), float(r.get("end_tstar") or 0.0)
+        return float(r["dh"]), float(r["gamma"])
+
+    return line, point
+
+
 def write_regime(rows: list[dict[str, str]], out: Path, pdf: bool) -> list[Path]:
     from matplotlib.figure import Figure
 
     csv_path = out / REGIME_CSV
     with csv_path.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=REGIME_COLUMNS)
+        w = csv.DictWriter(f, fieldnames=REGIME_COLUMNS, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
 
     fig = Figure(figsize=(6.5, 4.8), layout="constrained")
     ax = fig.subplots()
     placed = [r for r in rows if r["gamma"] and r["dh"]]
+    line, point = regime_layout(placed)
+
     for pattern, (marker, colour) in STYLE.items():
         for settled in (False, True):
-            pts = [(float(r["dh"]), float(r["gamma"])) for r in placed
+            pts = [point(r) for r in placed
                    if r["pattern"] == pattern and (r.get("settled") == "no") != settled]
             if not pts:
                 continue
@@ -814,10 +838,17 @@ def write_regime(rows: list[dict[str, str]], out: Path, pdf: bool) -> list[Path]
                        **({"color": colour} if settled else {"facecolors": "none",
                                                              "edgecolors": colour}))
     dhs = [float(r["dh"]) for r in placed]
-    if dhs and min(dhs) > 0 and max(dhs) / min(dhs) > 10:
+    if line != "gamma" and dhs and min(dhs) > 0 and max(dhs) / min(dhs) > 10:
         ax.set_xscale("log")
-    ax.set_xlabel("$D_h/D_1$")
-    ax.set_ylabel(r"$\gamma = D_1/D_2$")
+    if line is None:
+        ax.set_xlabel("$D_h/D_1$")
+        ax.set_ylabel(r"$\gamma = D_1/D_2$")
+    else:
+        fixed = (("D_h/D_1", placed[0]["dh"]) if line == "gamma"
+                 else ("\\gamma", placed[0]["gamma"]))
+        ax.set_xlabel(r"$\gamma = D_1/D_2$" if line == "gamma" else "$D_h/D_1$")
+        ax.set_ylabel("end of the run, $t^*$ (hollow: not settled)")
+        ax.text(0.02, 0.98, f"${fixed[0]} = {fixed[1]}$", transform=ax.transAxes, va="top")
     ax.set_title(f"DKT regimes: {len(rows)} runs"
                  + (f" ({len(rows) - len(placed)} without gamma or D_h not drawn)"
                     if len(placed) < len(rows) else ""), fontsize="medium")

@@ -312,3 +312,28 @@ def test_runs_side_by_side_are_not_bound_to_the_same_core(tmp_path: Path, base: 
     assert len(rows) == 2
     for row in rows:
         assert (out / row["id"] / "cores.txt").read_text() == allowed
+
+
+def test_regime_map_along_one_key_puts_each_run_at_its_end(tmp_path: Path, base: Path) -> None:
+    """A sweep of gamma at one D_h (as a bisection makes): the map draws gamma across and how
+    far each run got in t* up (collect's rows carry the run's last sample over the file's
+    t_ref: 3 s / 0.135526 s for these synthetic runs; a run without a pattern sits at 0), so
+    two runs of one point with different ends stand apart; a sweep over both keys keeps the
+    D_h-gamma map."""
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "1,2", "--dh", "2", "--out", out).returncode == 0
+    plan = sweep.read_plan(out)
+    syn.write_run(plan[0].h5, syn.SHAPES["once"], fields=False)
+    rows = sweep.collect(plan)
+    assert float(rows[0]["end_tstar"]) == pytest.approx(3.0 / 0.135526, rel=1e-5)
+    assert rows[1]["pattern"] == "missing" and rows[1]["end_tstar"] == ""
+    line, point = sweep.regime_layout(rows)
+    assert line == "gamma"
+    assert point(rows[0]) == (1.0, pytest.approx(3.0 / 0.135526, rel=1e-5))
+    assert point(rows[1]) == (2.0, 0.0)
+    assert "regime.png" in sweep_cli("collect", "--out", out).stdout
+    assert "end_tstar" not in (out / "regime.csv").read_text()  # not a regime.csv column
+
+    grid = [{"gamma": g, "dh": h} for g in ("1", "2") for h in ("2", "4")]
+    line, point = sweep.regime_layout(grid)
+    assert line is None and point(grid[1]) == (4.0, 1.0)
