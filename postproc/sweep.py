@@ -522,12 +522,14 @@ class BisectSettings:
     max_above: float = 4 * WINDOW_ABOVE  # D_1
 
     def identity(self) -> dict[str, object]:
-        """What a rerun in the same directory must repeat to reuse its runs."""
+        """What a rerun in the same directory must repeat to reuse its runs: the base scene,
+        the key and the --set options. A run is otherwise named by its value, t_end and
+        window (its id), so another --lo, --hi or --tol (a tighter bracket of the same
+        question) reuses every run it shares and runs only the new points."""
         import hashlib
 
         return {"base": str(self.base), "base_sha256": hashlib.sha256(
-            self.base.read_bytes()).hexdigest(), "key": self.key, "lo": self.lo,
-            "hi": self.hi, "tol": self.tol, "sets": self.sets}
+            self.base.read_bytes()).hexdigest(), "key": self.key, "sets": self.sets}
 
 
 class Bisector:
@@ -954,8 +956,9 @@ def parser() -> argparse.ArgumentParser:
         "never final: the point runs again with window.above doubled, up to --max-above. A run "
         "stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
-        "the final bracket. Rerunning the same command reuses the finished runs; other "
-        "settings for the same DIR are refused.")
+        "the final bracket. Rerunning the command reuses the finished runs (also with another "
+        "--lo, --hi or --tol: only new points run); another base scene or --set list for "
+        "the same DIR is refused.")
     bis.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
     bis.add_argument("--key", choices=("gamma", "dh"), required=True,
                      help="pair.gamma (D_1/D_2) or pair.dh (D_h/D_1)")

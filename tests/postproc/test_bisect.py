@@ -14,6 +14,7 @@ import csv
 import json
 import math
 import os
+import re
 import shlex
 import stat
 import subprocess
@@ -150,22 +151,33 @@ def test_search_brackets_the_threshold_and_extends_unsettled_points(
     assert [Path(r["dir"]).name for r in runs if r["value"] == "2"] == ["g2", "g2_a30", "g2_a60"]
 
 
-def test_rerun_reuses_runs_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
-    """The same bisection again in the same directory runs nothing and gives the same bracket;
-    another --tol, another --set or an edited base scene for that directory is refused with a
-    message naming what changed, before any run."""
+def bracket(summary: str) -> tuple[float, float]:
+    """The two ends in bisect's summary line 'gamma threshold between A (p) and B (q), ...'."""
+    match = re.search(r"between ([0-9.]+) \(\w+\) and ([0-9.]+) \(", summary)
+    assert match, summary
+    return float(match[1]), float(match[2])
+
+
+def test_rerun_reuses_runs_narrows_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
+    """The same bisection again in the same directory runs nothing and gives the same bracket.
+    A tighter --tol reuses every run and runs only new points, inside the first bracket, and
+    its bracket lies in the first one. Another --set or an edited base scene for that
+    directory is refused with a message naming what changed, before any run."""
     out = tmp_path / "b"
     first = FakeLaunch()
-    _, summary = sweep.bisect(settings(base, out), 1, first)
+    b1, summary = sweep.bisect(settings(base, out, tol=0.04), 1, first)
     again = FakeLaunch()
-    _, summary2 = sweep.bisect(settings(base, out), 1, again)
+    _, summary2 = sweep.bisect(settings(base, out, tol=0.04), 1, again)
     assert again.calls == [] and summary2 == summary
-    for changed, word in (
-        (settings(base, out, tol=0.02), "tol"),
-        (settings(base, out, sets=["lbm.tau=0.6"]), "sets"),
-    ):
-        with pytest.raises(sweep.SweepError, match=word):
-            sweep.bisect(changed, 1, again)
+    lo1, hi1 = bracket(summary)
+    finer = FakeLaunch()
+    _, summary3 = sweep.bisect(settings(base, out, tol=0.01), 1, finer)
+    new = [value for call in finer.calls for value, _, _ in call]
+    assert new and all(lo1 < value < hi1 for value in new)
+    lo3, hi3 = bracket(summary3)
+    assert lo1 <= lo3 < hi3 <= hi1 and hi3 - lo3 <= 0.01
+    with pytest.raises(sweep.SweepError, match="sets"):
+        sweep.bisect(settings(base, out, sets=["lbm.tau=0.6"]), 1, again)
     base.write_text(SCENE.replace("2.5", "3.0"))
     with pytest.raises(sweep.SweepError, match="base"):
         sweep.bisect(settings(base, out), 1, again)
@@ -220,7 +232,7 @@ def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
     summary line last, bisect.csv with a row per run and the bracket, runs.csv holding every
     run with the plan's command form; `collect` on the same directory adds status, t_end,
     settled and left_window after the regime.csv columns, agreeing with bisect.csv. A second
-    identical command reruns nothing."""
+    identical command reruns nothing; one with another --set is refused (exit 2)."""
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
@@ -253,8 +265,8 @@ def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
         assert g["left_window"] == ("yes" if r["status"] == "window_escape" else "no")
     proc = sweep_cli(*command, env=env)
     assert proc.returncode == 0 and "start" not in proc.stdout and "reuse" in proc.stdout
-    proc = sweep_cli(*command[:-2], "--tol", "0.1", env=env)
-    assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "tol" in proc.stderr
+    proc = sweep_cli(*command, "--set", "lbm.tau=0.6", env=env)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: ") and "sets" in proc.stderr
 
 
 FAKE_SBATCH = """#!{python}
