@@ -541,6 +541,15 @@ class Bisector:
         self.runs: dict[str, PlannedRun] = {}
         self.rows: list[dict[str, str]] = []
         self.launches = 0
+        # the values run before in this directory (an earlier --tol, --lo or --hi): runs.csv
+        # keeps them, and those already settled narrow the bracket before any new point runs
+        self.earlier: set[float] = set()
+        if (cfg.out / RUNS_CSV).is_file():
+            for r in read_plan(cfg.out):
+                self.runs[r.id] = r
+                value = r.gamma if cfg.key == "gamma" else r.dh
+                if value is not None:
+                    self.earlier.add(value)
 
     def planned(self, value: float, t_end: float, above: float) -> PlannedRun:
         c = self.cfg
@@ -569,16 +578,21 @@ class Bisector:
             "wall_s": "" if wall is None else f"{wall:.3g}", "dir": str(r.dir),
             "above": f"{above:g}"})
 
-    def settle(self, values: list[float]) -> dict[float, tuple[Verdict, PlannedRun]]:
+    def settle(self, values: list[float],
+               known_only: bool = False) -> dict[float, tuple[Verdict, PlannedRun]]:
         """Run each value until its pattern is settled (Verdict): at the first t_end and
         window.above; with t_end doubled while a finished run is not settled, up to max_t_end;
         with window.above doubled after a window escape, up to max_above. SweepError for a run
-        that failed and for a point not settled within either limit."""
+        that failed and for a point not settled within either limit. With `known_only`, run
+        nothing: return the values that the finished runs in the directory settle."""
         c = self.cfg
         target = {v: (c.t_end, c.above) for v in values}
         done: dict[float, tuple[Verdict, PlannedRun]] = {}
         while target:
             runs = {v: self.planned(v, t, a) for v, (t, a) in target.items()}
+            if known_only:
+                for value in [v for v, r in runs.items() if run_status(r.h5) != "finished"]:
+                    del runs[value], target[value]
             for r in runs.values():
                 self.runs.setdefault(r.id, r)
             todo = [r for r in runs.values() if run_status(r.h5) != "finished"]
@@ -637,6 +651,14 @@ class Bisector:
                 f"{c.key} = {c.lo:.8g} and {c.key} = {c.hi:.8g} give the same pattern, "
                 f"{lo[1]} and {hi[1]}: --lo and --hi must bracket a change of pattern")
         while hi[0] - lo[0] > c.tol * (1 + 1e-9):
+            inside = sorted(v for v in self.earlier if lo[0] < v < hi[0])
+            known = self.settle(inside, known_only=True) if inside else {}
+            if known:  # settled before (another --tol): narrow with them, running nothing
+                xs = sorted(known)
+                seq = [lo] + [(x, known[x][0].pattern) for x in xs] + [hi]
+                lo, hi = next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
+                self.earlier -= set(known)
+                continue
             width = hi[0] - lo[0]
             n = min(self.jobs, max(1, math.ceil(width / c.tol - 1e-9) - 1))
             xs = sorted({_value(lo[0] + k * width / (n + 1)) for k in range(1, n + 1)}

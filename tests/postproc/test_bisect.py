@@ -160,20 +160,24 @@ def bracket(summary: str) -> tuple[float, float]:
 
 def test_rerun_reuses_runs_narrows_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
     """The same bisection again in the same directory runs nothing and gives the same bracket.
-    A tighter --tol reuses every run and runs only new points, inside the first bracket, and
-    its bracket lies in the first one. Another --set or an edited base scene for that
+    A tighter --tol (here also with two points a step instead of one) first narrows with the
+    points settled before, then runs only new points, inside the first bracket (none of them
+    run before); its bracket lies in the first one, and runs.csv lists both searches' runs. Another --set or an edited base scene for that
     directory is refused with a message naming what changed, before any run."""
     out = tmp_path / "b"
     first = FakeLaunch()
-    b1, summary = sweep.bisect(settings(base, out, tol=0.04), 1, first)
+    _, summary = sweep.bisect(settings(base, out, tol=0.04), 1, first)
     again = FakeLaunch()
     _, summary2 = sweep.bisect(settings(base, out, tol=0.04), 1, again)
     assert again.calls == [] and summary2 == summary
     lo1, hi1 = bracket(summary)
     finer = FakeLaunch()
-    _, summary3 = sweep.bisect(settings(base, out, tol=0.01), 1, finer)
+    _, summary3 = sweep.bisect(settings(base, out, tol=0.01), 2, finer)
     new = [value for call in finer.calls for value, _, _ in call]
-    assert new and all(lo1 < value < hi1 for value in new)
+    ran_before = {value for call in first.calls for value, _, _ in call}
+    assert new and all(lo1 < value < hi1 and value not in ran_before for value in new)
+    plan = {r.id for r in sweep.read_plan(out)}  # runs.csv keeps both searches' runs
+    assert {f"g{v:.8g}" for v in ran_before | set(new)} <= {i.split("_")[0] for i in plan}
     lo3, hi3 = bracket(summary3)
     assert lo1 <= lo3 < hi3 <= hi1 and hi3 - lo3 <= 0.01
     with pytest.raises(sweep.SweepError, match="sets"):
