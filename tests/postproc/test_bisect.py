@@ -162,8 +162,9 @@ def test_rerun_reuses_runs_narrows_and_refuses_other_settings(tmp_path: Path, ba
     """The same bisection again in the same directory runs nothing and gives the same bracket.
     A tighter --tol (here also with two points a step instead of one) first narrows with the
     points settled before, then runs only new points, inside the first bracket (none of them
-    run before); its bracket lies in the first one, and runs.csv lists both searches' runs. Another --set or an edited base scene for that
-    directory is refused with a message naming what changed, before any run."""
+    run before); its bracket lies in the first one, and runs.csv lists both searches' runs.
+    Another --set or an edited base scene for that directory is refused with a message
+    naming what changed, before any run."""
     out = tmp_path / "b"
     first = FakeLaunch()
     _, summary = sweep.bisect(settings(base, out, tol=0.04), 1, first)
