@@ -155,7 +155,9 @@ def default_exe() -> str:
 
 
 def _fmt(value: float) -> str:
-    return f"{value:g}"
+    """A value as runs.csv, regime.csv and run ids write it: 10 significant digits, enough to
+    read back every bisection point (8 digits) exactly."""
+    return f"{value:.10g}"
 
 
 def _scene_setting(base: Path, sets: list[str], dotted: str) -> str | None:

@@ -160,20 +160,21 @@ def bracket(summary: str) -> tuple[float, float]:
 
 def test_rerun_reuses_runs_narrows_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
     """The same bisection again in the same directory runs nothing and gives the same bracket.
-    A tighter --tol (here also with two points a step instead of one) first narrows with the
-    points settled before, then runs only new points, inside the first bracket (none of them
-    run before); its bracket lies in the first one, and runs.csv lists both searches' runs.
+    A tighter --tol (here also with one point a step instead of two) first narrows with the
+    points settled before (thirds such as 1.3333333: runs.csv must keep their 8 digits), then
+    runs only new points, inside the first bracket (none of them run before); its bracket
+    lies in the first one, and runs.csv lists both searches' runs.
     Another --set or an edited base scene for that directory is refused with a message
     naming what changed, before any run."""
     out = tmp_path / "b"
     first = FakeLaunch()
-    _, summary = sweep.bisect(settings(base, out, tol=0.04), 1, first)
+    _, summary = sweep.bisect(settings(base, out, tol=0.1), 2, first)
     again = FakeLaunch()
-    _, summary2 = sweep.bisect(settings(base, out, tol=0.04), 1, again)
+    _, summary2 = sweep.bisect(settings(base, out, tol=0.1), 2, again)
     assert again.calls == [] and summary2 == summary
     lo1, hi1 = bracket(summary)
     finer = FakeLaunch()
-    _, summary3 = sweep.bisect(settings(base, out, tol=0.01), 2, finer)
+    _, summary3 = sweep.bisect(settings(base, out, tol=0.01), 1, finer)
     new = [value for call in finer.calls for value, _, _ in call]
     ran_before = {value for call in first.calls for value, _, _ in call}
     assert new and all(lo1 < value < hi1 and value not in ran_before for value in new)
