@@ -19,7 +19,8 @@ reads each run's pattern (pattern.py) into DIR/regime.csv and draws DIR/regime.p
 where the pattern changes, N runs per step; its runs are rows of DIR/runs.csv like a plan's.
 A pattern counts only when it is settled. 'repeated' is final as soon as a run has it (episodes
 only add). 'once' and 'never' are settled when the episodes that start by t_end/2 give the same
-pattern as all of them and the pair is not closing in at t_end; otherwise the point runs again
+pattern as all of them and the pair is neither closing in nor out of line at t_end (centres
+more than D_1/2 apart across the channel); otherwise the point runs again
 with t_end doubled, up to --max-t-end. A run that ended by window_escape is never final by
 itself: the point runs again with window.above doubled, up to --max-above. `collect` reports
 both in regime.csv.
@@ -407,11 +408,12 @@ class Verdict:
 
     `half` is the pattern of the episodes that start by t_end/2, `pattern` that of all of
     them. Episodes only add as a run goes on, so 'repeated' is final as soon as it is reached.
-    A finished run with 'once' or 'never' is settled when the two agree and the pair is not
-    closing in at its end (see closing_in): its pattern would survive doubling t_end as far as
-    this run can tell. A run that ended by window_escape is not settled: the pair was lost, and
-    the upper particle may come back (a bigger window can tell). Anything else (a guard, an
-    error, a signal, a run still going, no file) is not a pattern at all: `status` says what."""
+    A finished run with 'once' or 'never' is settled when the two agree and the pair is
+    neither closing in (closing_in) nor out of line (out_of_line) at its end: its pattern
+    would survive doubling t_end as far as this run can tell. A run that ended by
+    window_escape is not settled: the pair was lost, and the upper particle may come back (a
+    bigger window can tell). Anything else (a guard, an error, a signal, a run still going, no
+    file) is not a pattern at all: `status` says what."""
 
     status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing', 'failed'
     pattern: str = ""
@@ -448,6 +450,18 @@ def closing_in(pair) -> tuple[bool, str]:
     return bool(shrinking and gaining), state
 
 
+def out_of_line(pair) -> tuple[bool, str]:
+    """Whether the pair is out of line at the run's last sample: the particles' centres more
+    than D_1/2 apart across the channel. The trailing particle is then not (yet) in the
+    leader's wake; in this channel both drift back to the centreline, and once behind the
+    leader it may draft and catch up (Case-2 at gamma = 1, 16 per D: 3.3 D_1 apart across the
+    channel at t* = 50 and separating, kissing again at t* = 102)."""
+    x = pair.run.series["x"][-1, :2]
+    across = abs(float(x[0] - x[1]))
+    return across > 0.5 * pair.d1, (f"the centres are {across / pair.d1:.3g} D_1 apart across "
+                                    f"the channel")
+
+
 def verdict(h5: Path) -> Verdict:
     """The Verdict of the run file `h5` (see Verdict)."""
     status = run_status(h5)
@@ -474,15 +488,17 @@ def verdict(h5: Path) -> Verdict:
                 len(starts), starts[0] if starts else None, t_end, end_t, gamma=pair.gamma,
                 dh=pair.dh, t_ref=run.t_ref)
     closing, state = closing_in(pair)
+    off, across = out_of_line(pair)
     if pair.pattern == "repeated":
         v.settled = True
         v.why = f"{len(starts)} episodes by t = {end_t:.4g} s (episodes only add)"
     elif v.status == "window_escape":
         v.why = f"a particle left the window at t = {end_t:.4g} s ({state})"
     else:
-        v.settled = half == pair.pattern and not closing
+        v.settled = half == pair.pattern and not closing and not off
         v.why = (f"{half} by t_end/2 = {0.5 * t_end:.4g} s, {pair.pattern} by t_end = "
-                 f"{t_end:.4g} s" + (f"; closing in at t_end: {state}" if closing else ""))
+                 f"{t_end:.4g} s" + (f"; closing in at t_end: {state}" if closing else "")
+                 + (f"; out of line at t_end: {across}" if off else ""))
     return v
 
 
@@ -976,7 +992,8 @@ def parser() -> argparse.ArgumentParser:
         "counts only with a settled pattern: the episodes that start by t_end/2 give the same "
         "pattern as all of them; otherwise it runs again with run.t_end doubled, up to "
         "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
-        "whose pair is closing in at t_end is not settled. A run ended by window_escape is "
+        "whose pair is closing in, or out of line (centres more than D_1/2 apart across the "
+        "channel), at t_end is not settled. A run ended by window_escape is "
         "never final: the point runs again with window.above doubled, up to --max-above. A run "
         "stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "

@@ -90,15 +90,18 @@ def write_run(
     width: float = WIDTH,
     rho: float = 1.0,
     mu: float = 0.01,
+    across: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Write a run file at `path` whose pair gap follows `knots`; return its series (t, x, y,
     u, v, fy, dr, dx, dy). `diagnostics`: None for no /diagnostics group, else
-    {"attrs": {...}, "episodes": [(start, end), ...]} written with the computed series."""
+    {"attrs": {...}, "episodes": [(start, end), ...]} written with the computed series.
+    `across` (cm): particle 1 also moves aside, linearly from 0 at 2 s to `across` at the end
+    (the gap stays as the knots say)."""
     count = len(diameters)
     n = T.size
     dr = gap(knots)
     r_sum = 0.5 * (diameters[0] + diameters[1]) if count > 1 else 0.0
-    sway = 0.02 * np.sin(2.0 * T)
+    sway = 0.02 * np.sin(2.0 * T) + across * np.clip((T - 2.0) / (T_END - 2.0), 0.0, 1.0)
     x = np.empty((n, count))
     y = np.empty((n, count))
     x[:, -1] = 1.0

@@ -335,12 +335,15 @@ def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -
 def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
     """A real bisection: input/case2.nml at 8 spacings per smaller diameter, no fields, to its
     t_end of 8 s (t* = 59: the rules' verdicts at this end time, a check of the machinery,
-    not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time. D_h = 2 kisses once;
-    at 5 the upper disk leaves the 15-D_1 window, so the point is run again with
-    window.above = 30, where it finishes with 'never'. The two ends of the bracket have
-    different patterns, each settled (bisect.csv), each run that left the window was
-    followed by one with the window doubled, the bracket is at most 1.5 wide, and pattern.py
-    reads the same pattern from each end's run file."""
+    not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time, windows up to 120 D_1
+    (about 2 min on 2 cores). D_h = 2 kisses once, and the tumble throws the smaller disk
+    aside: out of line at 8 s (not settled), it runs to 16 and 32 s, leaving windows of 15,
+    30 and 60 D_1 as the pair separates, and settles `once` in line at 32 s. At 5 the upper
+    disk leaves the 15-D_1 window, so the point is run again with window.above = 30, where it
+    finishes with 'never'. The two ends of the bracket have different patterns, each settled
+    (bisect.csv), each run that left the window was followed by one with the window doubled,
+    each finished run not settled by one with t_end doubled, the bracket is at most 1.5 wide,
+    and pattern.py reads the same pattern from each end's run file."""
     out = tmp_path / "real"
     t0 = time.monotonic()
     proc = sweep_cli(
@@ -366,8 +369,10 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
         "2",
         "--ranks",
         "1",
+        "--max-above",
+        "120",
         env=mpi_env(),
-        timeout=280,
+        timeout=600,
     )
     print(f"real bisection: {time.monotonic() - t0:.1f} s")
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -384,6 +389,11 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
         assert r["settled"] == "no"
         bigger = [q for q in runs if q["value"] == r["value"] and q["t_end"] == r["t_end"]]
         assert str(2 * int(r["above"])) in [q["above"] for q in bigger]
+    unsettled = [r for r in runs if r["status"] == "finished" and r["settled"] == "no"]
+    assert unsettled, "the test must exercise a finished run that is not settled"
+    for r in unsettled:
+        longer = [q for q in runs if q["value"] == r["value"] and q["above"] == r["above"]]
+        assert f"{2 * float(r['t_end']):g}" in [q["t_end"] for q in longer]
     for end in (lo, hi):
         h5 = Path(end["dir"]) / "case2.h5"
         report = subprocess.run(

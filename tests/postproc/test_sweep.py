@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+import math
 import os
 import shlex
 import stat
@@ -337,3 +338,21 @@ def test_regime_map_along_one_key_puts_each_run_at_its_end(tmp_path: Path, base:
     grid = [{"gamma": g, "dh": h} for g in ("1", "2") for h in ("2", "4")]
     line, point = sweep.regime_layout(grid)
     assert line is None and point(grid[1]) == (4.0, 1.0)
+
+
+def test_a_once_pair_out_of_line_at_the_end_is_not_settled(tmp_path: Path) -> None:
+    """A `once` run whose pair is separating at the end is settled when the particles are in
+    line (centres within D_1/2 across the channel), and not when the upper one has moved
+    0.3 cm (1.5 D_1) aside: off the leader's wake it may still come back into it and draft
+    (the Verdict says why). The same holds for `never`."""
+    for shape in ("once", "never"):
+        inline = tmp_path / f"{shape}_inline" / "pair.h5"
+        aside = tmp_path / f"{shape}_aside" / "pair.h5"
+        syn.write_run(inline, syn.SHAPES[shape], fields=False)
+        syn.write_run(aside, syn.SHAPES[shape], fields=False, across=0.3)
+        v = sweep.verdict(inline)
+        assert (v.pattern, v.settled) == (shape, True), v.why
+        v = sweep.verdict(aside)
+        assert (v.pattern, v.settled) == (shape, False), v.why
+        across = (0.3 + 0.02 * math.sin(2.0 * syn.T_END)) / syn.D1  # with the synthetic sway
+        assert f"out of line at t_end: the centres are {across:.3g} D_1 apart across" in v.why
