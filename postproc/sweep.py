@@ -455,7 +455,7 @@ def out_of_line(pair) -> tuple[bool, str]:
     than D_1/2 apart across the channel. The trailing particle is then not (yet) in the
     leader's wake; in this channel both drift back to the centreline, and once behind the
     leader it may draft and catch up (Case-2 at gamma = 1, 16 per D: 3.3 D_1 apart across the
-    channel at t* = 50 and separating, kissing again at t* = 102)."""
+    channel at t* = 50, kissing again at t* = 102)."""
     x = pair.run.series["x"][-1, :2]
     across = abs(float(x[0] - x[1]))
     return across > 0.5 * pair.d1, (f"the centres are {across / pair.d1:.3g} D_1 apart across "
