@@ -2,10 +2,10 @@
 # plotting scripts' command lines and bad-input handling (synthetic run files and two small
 # real runs, the larger on 2 ranks), and the sweep tool (plan, Slurm array, collect, one real
 # run through `sweep.py run`), and the threshold search `sweep.py bisect` (a stand-in program,
-# here and through Slurm stand-ins, plus one real bisection of ten coarse runs, about 2 min).
+# here and through Slurm stand-ins, plus one real bisection of ten coarse runs, under a minute).
 dkt_add_pytest(NAME postproc FILE tests/postproc/test_postproc.py LABELS postproc PROCESSORS 2
   TIMEOUT 600)
 dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS postproc
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
-  PROCESSORS 2 TIMEOUT 600)
+  PROCESSORS 2 TIMEOUT 300)

@@ -333,10 +333,10 @@ def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -
 
 
 def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
-    """A real bisection: input/case2.nml at 8 spacings per smaller diameter, no fields, to its
+    """A real bisection: input/case2.nml at 6 spacings per smaller diameter, no fields, to its
     t_end of 8 s (t* = 59: the rules' verdicts at this end time, a check of the machinery,
     not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time, windows up to 120 D_1
-    (about 2 min on 2 cores). D_h = 2 kisses once, and the tumble throws the smaller disk
+    (under a minute on 2 cores). D_h = 2 kisses once, and the tumble throws the smaller disk
     aside: out of line at 8 s (not settled), it runs to 16 and 32 s, leaving windows of 15,
     30 and 60 D_1 as the pair separates, and settles `once` in line at 32 s. At 5 the upper
     disk leaves the 15-D_1 window, so the point is run again with window.above = 30, where it
@@ -358,7 +358,7 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
         "--tol",
         "1.5",
         "--set",
-        "lbm.cells_per_diameter=8",
+        "lbm.cells_per_diameter=6",
         "--set",
         "output.field_interval=0",
         "--exe",
