@@ -585,6 +585,10 @@ class Bisector:
         return PlannedRun(run_id, g, h, c.out / run_id, shlex.join(args))
 
     def _record(self, value: float, r: PlannedRun, v: Verdict, above: float) -> None:
+        """One bisect.csv row per run, however often the search reads it (a point settled
+        before is read by the narrowing pass, and again if it becomes a step's point)."""
+        if any(row["dir"] == str(r.dir) for row in self.rows):
+            return
         wall = wall_seconds(r)
         self.rows.append({
             "row": "run", "value": f"{value:.8g}", "pattern": v.pattern or v.status,
@@ -670,12 +674,10 @@ class Bisector:
                 f"{lo[1]} and {hi[1]}: --lo and --hi must bracket a change of pattern")
         while hi[0] - lo[0] > c.tol * (1 + 1e-9):
             inside = sorted(v for v in self.earlier if lo[0] < v < hi[0])
+            self.earlier -= set(inside)  # each earlier point is read once
             known = self.settle(inside, known_only=True) if inside else {}
             if known:  # settled before (another --tol): narrow with them, running nothing
-                xs = sorted(known)
-                seq = [lo] + [(x, known[x][0].pattern) for x in xs] + [hi]
-                lo, hi = next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
-                self.earlier -= set(known)
+                lo, hi = _first_change(lo, hi, known)
                 continue
             width = hi[0] - lo[0]
             n = min(self.jobs, max(1, math.ceil(width / c.tol - 1e-9) - 1))
@@ -684,10 +686,17 @@ class Bisector:
             if not xs:
                 raise SweepError(f"--tol {c.tol:g} is finer than 8 significant digits of "
                                  f"{c.key} resolve")
-            got = self.settle(xs)
-            seq = [lo] + [(x, got[x][0].pattern) for x in xs] + [hi]
-            lo, hi = next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
+            lo, hi = _first_change(lo, hi, self.settle(xs))
         return lo, hi
+
+
+def _first_change(lo: tuple[float, str], hi: tuple[float, str],
+                  got: dict[float, tuple[Verdict, PlannedRun]]) -> tuple[tuple[float, str],
+                                                                         tuple[float, str]]:
+    """The first sub-interval, from lo, of lo < the settled points `got` < hi whose two ends
+    have different patterns, as the new (lo, hi)."""
+    seq = [lo] + [(x, got[x][0].pattern) for x in sorted(got)] + [hi]
+    return next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
 
 
 def bisect_state(cfg: BisectSettings) -> None:
@@ -796,7 +805,7 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
         status = run_status(r.h5)
         if status == "failed" and r.h5.with_suffix(".checkpoint").is_file():
             status = "stopped"
-        v = verdict(r.h5)  # the run file is read once, here
+        v = verdict(r.h5)  # pattern and settling columns both come from this one verdict
         gamma, dh = r.gamma, r.dh
         pattern, episodes, first = status, "", ""
         if status == "finished":
@@ -816,8 +825,8 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
             "dir": str(r.dir),
             **_settling_columns(v, pattern),
             # for the map only (not a regime.csv column): how far the run got, in t*
-            "end_tstar": (f"{v.end_t / v.t_ref:.6g}" if pattern in STYLE and v.classified
-                          and math.isfinite(v.end_t / v.t_ref) else ""),
+            "end_tstar": (f"{v.end_t / v.t_ref:.6g}"
+                          if v.classified and math.isfinite(v.end_t / v.t_ref) else ""),
         })
     return rows
 

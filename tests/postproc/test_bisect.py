@@ -403,3 +403,16 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
             timeout=60,
         )
         assert json.loads(report.stdout)["pattern"] == end["pattern"]
+
+
+def test_a_resumed_search_lists_each_run_once(tmp_path: Path, base: Path) -> None:
+    """A search stopped by --max-t-end (a late-band point is closing in at t_end and may not
+    run longer) and then resumed with a larger limit: the resumed search narrows with the
+    points settled before, and bisect.csv lists each run once, including the runs of the
+    earlier point that did not settle then (it is read once, not again at each narrowing)."""
+    out = tmp_path / "b"
+    with pytest.raises(sweep.SweepError, match="max-t-end"):
+        sweep.bisect(settings(base, out, max_t_end=T_END), 1, FakeLaunch())
+    sweep.bisect(settings(base, out, max_t_end=32.0), 2, FakeLaunch())
+    runs = [r["dir"] for r in csv.DictReader((out / "bisect.csv").open()) if r["row"] == "run"]
+    assert runs and len(runs) == len(set(runs)), sorted(runs)
