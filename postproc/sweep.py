@@ -23,7 +23,8 @@ pattern as all of them and the pair is neither closing in nor out of line at t_e
 more than D_1/2 apart across the channel); otherwise the point runs again
 with t_end doubled, up to --max-t-end. A run that ended by window_escape is never final by
 itself: the point runs again with window.above doubled, up to --max-above. `collect` reports
-both in regime.csv.
+both in regime.csv. With --kiss (a once-to-never threshold) 'once' and 'repeated' are one class,
+'kisses', final as soon as a run has a kissing episode.
 """
 
 from __future__ import annotations
@@ -427,10 +428,26 @@ class Verdict:
     gamma: float | None = None  # the pair's, as the run file gives them
     dh: float | None = None
     t_ref: float = math.nan  # s, t* = t / t_ref (the run file's)
+    run_pattern: str = ""  # the run's own pattern, when `pattern` is a class of it (judge)
 
     @property
     def classified(self) -> bool:
         return self.status in ("finished", "window_escape")
+
+
+def judge(v: Verdict, kiss: bool) -> Verdict:
+    """The Verdict as a bisection compares it. By default patterns are compared as they are.
+    With `kiss` (a `once` to `never` threshold), `once` and `repeated` are one class, 'kisses':
+    a run with a kissing episode has it for good (episodes only add, as for `repeated`), so it
+    is settled at once, also when the pair is out of line, closing in, or left the window
+    after the kiss; a `never` settles as before. The run's own pattern stays in
+    `run_pattern`."""
+    v.run_pattern = v.pattern
+    if kiss and v.classified and v.episodes > 0:
+        v.pattern, v.settled = "kisses", True
+        v.why = (f"kissed from t = {v.first_kiss:.4g} s ({v.run_pattern} by t = "
+                 f"{v.end_t:.4g} s; episodes only add)")
+    return v
 
 
 def closing_in(pair) -> tuple[bool, str]:
@@ -538,6 +555,7 @@ class BisectSettings:
     max_t_end: float  # s
     above: float = WINDOW_ABOVE  # D_1, the runs' first window.above
     max_above: float = 4 * WINDOW_ABOVE  # D_1
+    kiss: bool = False  # tell 'kisses' (once or repeated) from 'never' only (judge)
 
     def identity(self) -> dict[str, object]:
         """What a rerun in the same directory must repeat to reuse its runs: the base scene,
@@ -591,7 +609,7 @@ class Bisector:
             return
         wall = wall_seconds(r)
         self.rows.append({
-            "row": "run", "value": f"{value:.8g}", "pattern": v.pattern or v.status,
+            "row": "run", "value": f"{value:.8g}", "pattern": v.run_pattern or v.status,
             "episodes": str(v.episodes) if v.classified else "",
             "first_kiss_t": "" if v.first_kiss is None else f"{v.first_kiss:.6g}",
             "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
@@ -626,7 +644,7 @@ class Bisector:
                 self.launch(todo, list(self.runs.values()))
             for value, r in runs.items():
                 t_end, above = target[value]
-                v = verdict(r.h5)
+                v = judge(verdict(r.h5), c.kiss)
                 self._record(value, r, v, above)
                 name = f"{c.key} = {value:.8g}"
                 at = f"t_end = {t_end:g} s, window.above = {above:g} D_1"
@@ -1003,8 +1021,9 @@ def parser() -> argparse.ArgumentParser:
         "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
         "whose pair is closing in, or out of line (centres more than D_1/2 apart across the "
         "channel), at t_end is not settled. A run ended by window_escape is "
-        "never final: the point runs again with window.above doubled, up to --max-above. A run "
-        "stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
+        "never final: the point runs again with window.above doubled, up to --max-above. With "
+        "--kiss only a kiss is told from none: a run with a kissing episode is final at once. A "
+        "run stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
         "the final bracket. Rerunning the command reuses the finished runs (also with another "
         "--lo, --hi or --tol: only new points run); another base scene or --set list for "
@@ -1024,6 +1043,10 @@ def parser() -> argparse.ArgumentParser:
     bis.add_argument("--max-above", type=float, metavar="D",
                      help="the largest window.above (in D_1) a point may need to hold both "
                      "particles (default: 4 times the first, the scene's or --set's)")
+    bis.add_argument("--kiss", action="store_true",
+                     help="tell only whether the pair kisses: 'once' and 'repeated' are one "
+                     "class, 'kisses', final as soon as a run has a kissing episode (for a once "
+                     "to never threshold; 'never' settles as without it)")
     bis.add_argument("--exe", default=None, help="the dktlbm executable (as for plan)")
     with_out(bis)
     bis.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -1068,7 +1091,8 @@ def _bisect_command(args: argparse.Namespace) -> int:
     if not max_above >= above:
         raise SweepError(f"--max-above {max_above:g} is below window.above = {above:g} D_1")
     cfg = BisectSettings(base, args.key, lo, hi, args.tol, list(args.sets), args.out.resolve(),
-                         args.exe or default_exe(), t_end, max_t_end, above, max_above)
+                         args.exe or default_exe(), t_end, max_t_end, above, max_above,
+                         args.kiss)
     if args.slurm:
         launch = slurm_launcher(cfg.out, args.ntasks, args.time, args.partition, args.setup)
     else:

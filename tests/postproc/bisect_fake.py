@@ -13,7 +13,8 @@ log with a `performance:` line, for a pair whose pattern is a known function of 
 - V >= ESCAPE: the upper particle leaves the window at 0.75 T A / 30 (A = window.above, in
   D_1, default 15) when that is before T: by window_escape at 0.375 T with A = 15, at
   0.75 T with A = 30; with A = 60 the run finishes;
-- V >= GUARD: stopped by a guard at 0.5 T, exit status 3.
+- V >= GUARD: stopped by a guard at 0.5 T, exit status 3;
+- V >= FAKE_NEVER (from the environment; default: no such band): no episode ('never').
 
 An episode counts when it starts within the run. The environment may move THRESHOLD
 (FAKE_THRESHOLD). `python3 bisect_fake.py ARGS...` acts as the program.
@@ -52,7 +53,9 @@ def late(value: float) -> bool:
 def behaviour(value: float, t_end: float, above: float) -> tuple[list[float], str, float, float]:
     """(episode starts, stop_reason, time the run ends, velocity of the upper particle)."""
     threshold = float(os.environ.get("FAKE_THRESHOLD", THRESHOLD))
-    if value >= threshold:
+    if value >= float(os.environ.get("FAKE_NEVER", "inf")):
+        starts = []
+    elif value >= threshold:
         starts = [1.0]
     else:
         starts = [1.0, 6.0 if late(value) else 1.5]

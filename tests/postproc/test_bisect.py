@@ -416,3 +416,54 @@ def test_a_resumed_search_lists_each_run_once(tmp_path: Path, base: Path) -> Non
     sweep.bisect(settings(base, out, max_t_end=32.0), 2, FakeLaunch())
     runs = [r["dir"] for r in csv.DictReader((out / "bisect.csv").open()) if r["row"] == "run"]
     assert runs and len(runs) == len(set(runs)), sorted(runs)
+
+
+def test_kiss_mode_settles_a_kiss_at_once_and_never_as_before(
+    tmp_path: Path, base: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--kiss (a once-to-never threshold): with no episode from gamma = 1.95 on, the bracket
+    holds 1.95, 'kisses' below and 'never' above, at most --tol wide. A point that kissed is
+    settled by its first run: a late-band point ('once' and closing in at t_end = 4, which
+    the pattern rule runs again to 8) is not run again, nor is a point in [1.9, 1.95) that
+    kissed and then left the window (the pattern rule doubles the window). 'never' points
+    still need the usual rule: they leave the window and settle only at window.above = 60.
+    bisect.csv keeps each run's own pattern ('once'), the lo row the class 'kisses'. Then the
+    same search from the command line reuses every run and prints the same bracket."""
+    monkeypatch.setenv("FAKE_NEVER", "1.95")
+    out = tmp_path / "k"
+    cfg = settings(base, out)
+    cfg.kiss = True
+    b, summary = sweep.bisect(cfg, 2, FakeLaunch())
+    rows = list(csv.DictReader((out / "bisect.csv").open()))
+    lo = next(r for r in rows if r["row"] == "lo")
+    hi = next(r for r in rows if r["row"] == "hi")
+    assert (lo["pattern"], hi["pattern"]) == ("kisses", "never")
+    assert float(lo["value"]) < 1.95 <= float(hi["value"])
+    assert float(hi["value"]) - float(lo["value"]) <= 0.01
+    runs = [r for r in rows if r["row"] == "run"]
+    kissed = [r for r in runs if float(r["value"]) < 1.95]
+    late = [r for r in kissed if fake.late(float(r["value"]))]
+    escaped = [r for r in kissed if float(r["value"]) >= fake.ESCAPE]
+    assert late and escaped, "the test must exercise both shortcuts"
+    assert [r["pattern"] for r in late] == ["once"] * len(late)
+    assert [r["status"] for r in escaped] == ["window_escape"] * len(escaped)
+    for r in kissed:  # one run per kissing point, settled, at the first t_end and window
+        assert (r["t_end"], r["above"], r["settled"]) == ("4", "15", "yes"), r
+    assert len({r["value"] for r in kissed}) == len(kissed)
+    never = {r["value"] for r in runs if float(r["value"]) >= 1.95}
+    for value in never:
+        mine = [(r["above"], r["settled"]) for r in runs if r["value"] == value]
+        assert mine == [("15", "no"), ("30", "no"), ("60", "yes")], (value, mine)
+
+    mpiexec = stand_in(
+        tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
+    )
+    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    command = ["bisect", base, "--key", "gamma", "--lo", "1", "--hi", "2", "--tol", "0.01",
+               "--exe", FAKE, "--out", out, "--jobs", "2", "--max-t-end", "32",
+               "--max-above", "60", "--kiss"]  # fmt: skip
+    proc = sweep_cli(*command, env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "start" not in proc.stdout and "reuse" in proc.stdout
+    assert proc.stdout.strip().splitlines()[-1] == summary
+    assert "(kisses) and" in summary and "(never)" in summary
