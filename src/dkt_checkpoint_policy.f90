@@ -18,6 +18,7 @@ module dkt_checkpoint_policy
   use dkt_run_state, only: simulation_t, path_t
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
+  use dkt_io, only: io_flush
   implicit none
   private
   public :: checkpoint_clock_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
@@ -225,6 +226,9 @@ contains
     else
       allocate (chk%t_start(0), chk%t_end(0), chk%gap_min(0))
     end if
+    ! the run file first holds every sample the checkpoint counts, so that a run killed later
+    ! resumes onto complete series (samples are held in memory between flushes, dkt_io)
+    if (sim%output_open) call io_flush(sim%io)
     call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
                           sim%cfg%given, err)
     if (len(err) > 0) then

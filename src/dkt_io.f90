@@ -42,7 +42,7 @@ module dkt_io
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
-            io_write_attribute, io_close, io_file_exists, io_reopen
+            io_write_attribute, io_close, io_flush, io_file_exists, io_reopen
   public :: io_file_open, io_file_close, io_put_real, io_put_int, &
             io_get_real, io_get_int, io_dataset_dims
 
@@ -60,6 +60,18 @@ module dkt_io
     character(len=:), allocatable :: path
     character(len=:), allocatable :: failed !! the first failed call, '' if none
   end type io_file_t
+
+  !> The rows appended to one extendible dataset since the last io_flush.
+  type :: pending_t
+    character(len=:), allocatable :: group !! e.g. 'particles'
+    character(len=:), allocatable :: name  !! e.g. 'x'
+    integer :: ndims = 1 !! 1 series, 2 table
+    integer :: n = 0     !! rows held
+    real(wp), allocatable :: rows(:, :) !! (columns, capacity)
+  end type pending_t
+
+  !> A dataset's store holds at most MAX_PENDING rows and PENDING_VALUES values (512 KiB)
+  integer, parameter :: PENDING_VALUES = 65536, MAX_PENDING = 256
 
   !> An open output file and what has been written to it.
   type, public :: io_t
@@ -79,13 +91,20 @@ module dkt_io
     character(len=:), allocatable :: path      !! <dir>/<name>.h5
     character(len=:), allocatable :: xdmf_path !! <dir>/<name>.xdmf
     type(xdmf_t) :: xdmf !! the snapshots listed in the sidecar
+    !> Rows of the extendible datasets not yet in the file, one entry per dataset in the order
+    !! of first use. Every append is collective in parallel HDF5 (the extent is file metadata),
+    !! so rows are gathered here and written many at a time (io_flush).
+    type(pending_t), allocatable :: pending(:)
+    integer :: npending = 0
   end type io_t
 
   !> Set attribute `name` of the group or dataset at `path` (e.g. '/particles' or
   !! '/particles/x') to rank 0's value: a real(wp), an integer or a character string (stored as
   !! given, trailing blanks included; h5py reads bytes). When nothing is at `path` yet, it is
   !! created as a group, with any missing group above it. An attribute of the same name is
-  !! replaced. Collective; not flushed (io_write_fields and io_close flush).
+  !! replaced. Collective. The rows held for series and tables are written first, so that an
+  !! attribute can be set on such a dataset; the file is not flushed (io_write_fields, io_flush
+  !! and io_close flush).
   interface io_write_attribute
     module procedure write_attribute_real, write_attribute_int, write_attribute_text
   end interface io_write_attribute
@@ -295,7 +314,7 @@ contains
                      trim(names(j))//')', io%path)
           call h5sclose_f(space, hdferr)
           call check(hdferr, 'h5sclose_f', io%path)
-          ! samples run along the last HDF5 dimension (append_sample)
+          ! samples run along the last HDF5 dimension (write_rows)
           if (dims(nd) < samples) call fatal_local('io_reopen: '//path//'/'// &
                                                    trim(names(j))//' in '''//io%path// &
                                                    ''' holds fewer samples than the checkpoint')
@@ -429,6 +448,7 @@ contains
     character(len=:), allocatable :: gname
 
     call require_open(io, 'io_write_fields')
+    call flush_pending(io)
     if (size(fields, 1) /= io%nx .or. size(fields, 2) /= io%nyl .or. &
         size(fields, 3) /= size(names)) call fatal_local('io_write_fields: fields must have '// &
                                                          'shape (nx, nyl, size(names))')
@@ -472,8 +492,8 @@ contains
 
   !> Append one row to the extendible 1-D datasets /<group>/<names(k)> (h5py shape
   !! (n_samples,)), created on first use, with the group. The values of rank 0 are written; the
-  !! other ranks pass an array of the same size. Not flushed: io_write_fields and io_close
-  !! flush.
+  !! other ranks pass an array of the same size. Collective. The row is held in memory until
+  !! io_flush, io_write_fields or io_close writes it (or the held rows fill their store).
   subroutine io_write_series(io, group, names, values)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'diagnostics'
@@ -483,8 +503,7 @@ contains
     call require_open(io, 'io_write_series')
     if (size(names) /= size(values)) call fatal_local('io_write_series: names and values '// &
                                                       'differ in size')
-    call append_sample(io, group, names, reshape(values, [1, size(values)]), 1, &
-                       'io_write_series')
+    call hold_rows(io, group, names, reshape(values, [1, size(values)]), 1, 'io_write_series')
   end subroutine io_write_series
 
   !> Append one sample to the extendible 2-D datasets /<group>/<names(k)>, created on first use
@@ -492,7 +511,7 @@ contains
   !! values(:, k) is the new row of names(k). The column count is fixed when a dataset is
   !! created. The values of rank 0 are written; the other ranks pass an array of the same
   !! shape. A group may hold series and tables side by side (/particles/t and /particles/x).
-  !! Not flushed: io_write_fields and io_close flush.
+  !! Collective; held in memory like io_write_series.
   subroutine io_write_table(io, group, names, values)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'particles'
@@ -504,11 +523,29 @@ contains
     if (size(values, 2) /= size(names) .or. size(values, 1) < 1) &
       call fatal_local('io_write_table: values must have shape (ncols, size(names)), ncols >= 1')
     ! The dataset shapes are collective metadata: a rank with another shape would corrupt them.
-    call MPI_Allreduce([shape(values), -shape(values)], ext, 4, MPI_INTEGER, MPI_MAX, io%comm)
-    if (any(ext(1:2) /= -ext(3:4))) call fatal_local('io_write_table: the ranks pass values '// &
-                                                     'of different shapes for '//trim(group))
-    call append_sample(io, group, names, values, 2, 'io_write_table')
+    ! Compared across the ranks when the datasets are first held; after that each rank holds
+    ! its rows at that shape and refuses another (hold_rows).
+    if (find_pending(io, group, names(1)) == 0) then
+      call MPI_Allreduce([shape(values), -shape(values)], ext, 4, MPI_INTEGER, MPI_MAX, io%comm)
+      if (any(ext(1:2) /= -ext(3:4))) call fatal_local('io_write_table: the ranks pass '// &
+                                                       'values of different shapes for '// &
+                                                       trim(group))
+    end if
+    call hold_rows(io, group, names, values, 2, 'io_write_table')
   end subroutine io_write_table
+
+  !> Write the rows held for the extendible datasets (io_write_series, io_write_table) and
+  !! flush the file, so that it holds every sample given so far (called before a checkpoint,
+  !! so that a resumed run finds the samples the checkpoint counts). Collective.
+  subroutine io_flush(io)
+    type(io_t), intent(inout) :: io
+    integer :: hdferr
+
+    call require_open(io, 'io_flush')
+    call flush_pending(io)
+    call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
+    call check(hdferr, 'h5fflush_f', io%path)
+  end subroutine io_flush
 
   subroutine write_attribute_real(io, path, name, value)
     type(io_t), intent(inout) :: io
@@ -518,6 +555,7 @@ contains
     real(wp) :: v
 
     call require_open(io, 'io_write_attribute')
+    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     v = value
     call MPI_Bcast(v, 1, mpi_wp, 0, io%comm)
     call set_attribute(io, path, name, r=v)
@@ -531,6 +569,7 @@ contains
     integer :: v
 
     call require_open(io, 'io_write_attribute')
+    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     v = value
     call MPI_Bcast(v, 1, MPI_INTEGER, 0, io%comm)
     call set_attribute(io, path, name, i=v)
@@ -545,6 +584,7 @@ contains
     integer :: n
 
     call require_open(io, 'io_write_attribute')
+    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     ! The length first: the other ranks' strings may be longer or shorter than rank 0's.
     n = len(value)
     call MPI_Bcast(n, 1, MPI_INTEGER, 0, io%comm)
@@ -560,6 +600,7 @@ contains
     integer :: hdferr
 
     if (.not. io%is_open) return
+    call flush_pending(io)
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
     call h5pclose_f(io%dxpl, hdferr)
@@ -575,6 +616,8 @@ contains
     io%file_id = -1
     io%dxpl = -1
     call xdmf_free(io%xdmf)
+    if (allocated(io%pending)) deallocate (io%pending)
+    io%npending = 0
   end subroutine io_close
 
   !> Whether a file exists at `path` (local to the calling rank).
@@ -622,6 +665,7 @@ contains
     io%nyl = nyl
     io%dx = dx
     call xdmf_init(io%xdmf, io%xdmf_path, io%name//'.h5', nx, ny, dx)
+    io%npending = 0
     io%is_open = .true.
   end subroutine set_open
 
@@ -640,77 +684,157 @@ contains
   !! sees (n_samples,) for a series (`ndims` = 1, values(1, k) the new value) and (n_samples,
   !! ncols) for a table (`ndims` = 2, values(:, k) the new row). Rank 0 writes the sample; the
   !! other ranks join the collective writes with nothing selected.
-  subroutine append_sample(io, group, names, values, ndims, caller)
+  !> The entry of io%pending that holds /<group>/<name>, 0 if none.
+  integer function find_pending(io, group, name) result(idx)
     type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: group, name
+    do idx = 1, io%npending
+      if (io%pending(idx)%name == trim(name)) then
+        if (io%pending(idx)%group == trim(group)) return
+      end if
+    end do
+    idx = 0
+  end function find_pending
+
+  !> Hold values(:, k) as the next row of /<group>/<names(k)>, k = 1..size(names). A dataset
+  !! keeps the kind (series or table) and the column count of its first row. When a dataset's
+  !! store is full, every held row is written (on every rank at the same call: the calls are
+  !! collective, so the stores fill together).
+  subroutine hold_rows(io, group, names, values, ndims, caller)
+    type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group, names(:)
     real(wp), intent(in) :: values(:, :) !! (ncols, size(names)); ncols = 1 for a series
     integer, intent(in) :: ndims         !! 1 series, 2 table
     character(len=*), intent(in) :: caller
+    type(pending_t), allocatable :: grown(:)
+    integer :: k, idx, ncols
+    logical :: full
+    character(len=80) :: msg
+
+    ncols = size(values, 1)
+    full = .false.
+    do k = 1, size(names)
+      idx = find_pending(io, group, names(k))
+      if (idx == 0) then
+        if (.not. allocated(io%pending)) allocate (io%pending(8))
+        if (io%npending == size(io%pending)) then
+          allocate (grown(2*size(io%pending)))
+          grown(1:io%npending) = io%pending
+          call move_alloc(grown, io%pending)
+        end if
+        io%npending = io%npending + 1
+        idx = io%npending
+        io%pending(idx)%group = trim(group)
+        io%pending(idx)%name = trim(names(k))
+        io%pending(idx)%ndims = ndims
+        io%pending(idx)%n = 0
+        allocate (io%pending(idx)%rows(ncols, max(1, min(MAX_PENDING, PENDING_VALUES/ncols))))
+      end if
+      associate (p => io%pending(idx))
+        if (p%ndims /= ndims) then
+          write (msg, '(a,i0,a)') ' has ', p%ndims, ' dimensions; write it with '// &
+            trim(merge('io_write_series', 'io_write_table ', p%ndims == 1))
+          call fatal_local(caller//': '//p%group//'/'//p%name//' in '''//io%path//''''// &
+                           trim(msg))
+        end if
+        if (size(p%rows, 1) /= ncols) then
+          write (msg, '(a,i0,a,i0)') ' has ', size(p%rows, 1), ' columns; the new row has ', &
+            ncols
+          call fatal_local(caller//': '//p%group//'/'//p%name//' in '''//io%path//''''// &
+                           trim(msg))
+        end if
+        p%n = p%n + 1
+        p%rows(:, p%n) = values(:, k)
+        full = full .or. p%n == size(p%rows, 2)
+      end associate
+    end do
+    if (full) call flush_pending(io)
+  end subroutine hold_rows
+
+  !> Append the held rows to their datasets, in the order the datasets were first used, and
+  !! empty the stores. Collective.
+  subroutine flush_pending(io)
+    type(io_t), intent(inout) :: io
+    integer :: idx
+    do idx = 1, io%npending
+      if (io%pending(idx)%n > 0) call write_rows(io, io%pending(idx))
+      io%pending(idx)%n = 0
+    end do
+  end subroutine flush_pending
+
+  !> Append the rows held in p to the extendible dataset /<p%group>/<p%name>, created with its
+  !! group on first use: 1-D (samples) for a series, 2-D (columns, samples) for a table. A
+  !! dataset already in the file (a resumed run appends to the run it continues) must be of
+  !! the same kind and column count.
+  subroutine write_rows(io, p)
+    type(io_t), intent(in) :: io
+    type(pending_t), intent(in) :: p
     integer(hid_t) :: grp, dcpl, fspace, dset
-    integer(hsize_t) :: ncols, dims(2), maxdims(2), chunk(2), start(2), count(2)
-    integer :: hdferr, k, lo, stored
+    integer(hsize_t) :: ncols, nrows, dims(2), maxdims(2), chunk(2), start(2), count(2)
+    integer :: hdferr, lo, stored, ndims
     logical :: exists
-    character(len=:), allocatable :: what
+    character(len=:), allocatable :: what, caller
     character(len=80) :: msg
 
     ! A series uses the last entry of the (column, sample) arrays only.
+    ndims = p%ndims
     lo = 3 - ndims
-    ncols = size(values, 1, kind=hsize_t)
-    grp = open_object(io, group)
-    do k = 1, size(names)
-      what = trim(group)//'/'//trim(names(k))
-      call h5lexists_f(grp, trim(names(k)), exists, hdferr)
-      call check(hdferr, 'h5lexists_f('//what//')', io%path)
-      if (exists) then
-        call h5dopen_f(grp, trim(names(k)), dset, hdferr)
-        call check(hdferr, 'h5dopen_f('//what//')', io%path)
-      else
-        dims = [ncols, 0_hsize_t]
-        maxdims = [ncols, H5S_UNLIMITED_F]
-        ! Whole rows, about 1024 values (8 KiB) a chunk.
-        chunk = [ncols, max(1_hsize_t, 1024_hsize_t/ncols)]
-        call h5screate_simple_f(ndims, dims(lo:), fspace, hdferr, maxdims=maxdims(lo:))
-        call check(hdferr, 'h5screate_simple_f', io%path)
-        call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
-        call check(hdferr, 'h5pcreate_f(dataset create)', io%path)
-        call h5pset_chunk_f(dcpl, ndims, chunk(lo:), hdferr)
-        call check(hdferr, 'h5pset_chunk_f', io%path)
-        call h5dcreate_f(grp, trim(names(k)), io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
-        call check(hdferr, 'h5dcreate_f('//what//')', io%path)
-        call h5pclose_f(dcpl, hdferr)
-        call check(hdferr, 'h5pclose_f', io%path)
-        call h5sclose_f(fspace, hdferr)
-        call check(hdferr, 'h5sclose_f', io%path)
-      end if
-      call h5dget_space_f(dset, fspace, hdferr)
-      call check(hdferr, 'h5dget_space_f('//what//')', io%path)
-      call h5sget_simple_extent_ndims_f(fspace, stored, hdferr)
-      call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
-      if (stored /= ndims) then
-        write (msg, '(a,i0,a)') ' has ', stored, ' dimensions; write it with '// &
-          trim(merge('io_write_series', 'io_write_table ', stored == 1))
-        call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
-      end if
-      call h5sget_simple_extent_dims_f(fspace, dims(lo:), maxdims(lo:), hdferr)
-      call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
+    ncols = size(p%rows, 1, kind=hsize_t)
+    nrows = int(p%n, hsize_t)
+    caller = trim(merge('io_write_series', 'io_write_table ', ndims == 1))
+    what = p%group//'/'//p%name
+    grp = open_object(io, p%group)
+    call h5lexists_f(grp, p%name, exists, hdferr)
+    call check(hdferr, 'h5lexists_f('//what//')', io%path)
+    if (exists) then
+      call h5dopen_f(grp, p%name, dset, hdferr)
+      call check(hdferr, 'h5dopen_f('//what//')', io%path)
+    else
+      dims = [ncols, 0_hsize_t]
+      maxdims = [ncols, H5S_UNLIMITED_F]
+      ! Whole rows, about 1024 values (8 KiB) a chunk.
+      chunk = [ncols, max(1_hsize_t, 1024_hsize_t/ncols)]
+      call h5screate_simple_f(ndims, dims(lo:), fspace, hdferr, maxdims=maxdims(lo:))
+      call check(hdferr, 'h5screate_simple_f', io%path)
+      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+      call check(hdferr, 'h5pcreate_f(dataset create)', io%path)
+      call h5pset_chunk_f(dcpl, ndims, chunk(lo:), hdferr)
+      call check(hdferr, 'h5pset_chunk_f', io%path)
+      call h5dcreate_f(grp, p%name, io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
+      call check(hdferr, 'h5dcreate_f('//what//')', io%path)
+      call h5pclose_f(dcpl, hdferr)
+      call check(hdferr, 'h5pclose_f', io%path)
       call h5sclose_f(fspace, hdferr)
       call check(hdferr, 'h5sclose_f', io%path)
-      if (ndims == 2 .and. dims(1) /= ncols) then
-        write (msg, '(a,i0,a,i0)') ' has ', dims(1), ' columns; the new row has ', ncols
-        call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
-      end if
-      dims(2) = dims(2) + 1
-      call h5dset_extent_f(dset, dims(lo:), hdferr)
-      call check(hdferr, 'h5dset_extent_f('//what//')', io%path)
-      start = [0_hsize_t, dims(2) - 1]
-      count = merge([ncols, 1_hsize_t], [0_hsize_t, 0_hsize_t], io%rank == 0)
-      call write_block(io, dset, start(lo:), count(lo:), values(:, k), what)
-      call h5dclose_f(dset, hdferr)
-      call check(hdferr, 'h5dclose_f('//what//')', io%path)
-    end do
+    end if
+    call h5dget_space_f(dset, fspace, hdferr)
+    call check(hdferr, 'h5dget_space_f('//what//')', io%path)
+    call h5sget_simple_extent_ndims_f(fspace, stored, hdferr)
+    call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
+    if (stored /= ndims) then
+      write (msg, '(a,i0,a)') ' has ', stored, ' dimensions; write it with '// &
+        trim(merge('io_write_series', 'io_write_table ', stored == 1))
+      call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
+    end if
+    call h5sget_simple_extent_dims_f(fspace, dims(lo:), maxdims(lo:), hdferr)
+    call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
+    call h5sclose_f(fspace, hdferr)
+    call check(hdferr, 'h5sclose_f', io%path)
+    if (ndims == 2 .and. dims(1) /= ncols) then
+      write (msg, '(a,i0,a,i0)') ' has ', dims(1), ' columns; the new row has ', ncols
+      call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
+    end if
+    dims(2) = dims(2) + nrows
+    call h5dset_extent_f(dset, dims(lo:), hdferr)
+    call check(hdferr, 'h5dset_extent_f('//what//')', io%path)
+    start = [0_hsize_t, dims(2) - nrows]
+    count = merge([ncols, nrows], [0_hsize_t, 0_hsize_t], io%rank == 0)
+    call write_block(io, dset, start(lo:), count(lo:), p%rows, what)
+    call h5dclose_f(dset, hdferr)
+    call check(hdferr, 'h5dclose_f('//what//')', io%path)
     call h5oclose_f(grp, hdferr)
-    call check(hdferr, 'h5oclose_f('//trim(group)//')', io%path)
-  end subroutine append_sample
+    call check(hdferr, 'h5oclose_f('//p%group//')', io%path)
+  end subroutine write_rows
 
   !> Open the group or dataset at `path` ('a/b' or '/a/b'; '' or '/' is the root group),
   !! creating each missing component as a group. The caller closes it with h5oclose_f.

@@ -162,11 +162,17 @@ def tree_digest(path: Path) -> dict[str, str]:
 
 
 def sigterm_when_logged(
-    nml: str | Path, ranks: int, sets: list[str], outdir: Path, logged: str, timeout: float = 120.0
+    nml: str | Path,
+    ranks: int,
+    sets: list[str],
+    outdir: Path,
+    logged: str,
+    timeout: float = 120.0,
+    signum: int = signal.SIGTERM,
 ) -> subprocess.CompletedProcess[str]:
     """Run dktlbm (scene `nml` in input/ or a path) with output.dir = outdir, wait until its log
-    holds `logged` (e.g. a progress line: the run is stepping), send SIGTERM to every rank as a
-    batch system does, and return the finished process."""
+    holds `logged` (e.g. a progress line: the run is stepping), send SIGTERM (or `signum`, e.g.
+    SIGKILL) to every rank as a batch system does, and return the finished process."""
     path = Path(nml)
     if not path.exists():
         path = INPUT / nml
@@ -188,6 +194,6 @@ def sigterm_when_logged(
             break
         time.sleep(0.05)
     for pid in session_pids(proc.pid, "dktlbm"):
-        os.kill(pid, signal.SIGTERM)
+        os.kill(pid, signum)
     stdout, stderr = proc.communicate(timeout=timeout)
     return subprocess.CompletedProcess(cmd, proc.returncode, stdout, stderr)

@@ -6,10 +6,12 @@
 !>   (t = 0.125 s, offset 0.5 cm) with field k (1-based) at global column i, row j (1-based) equal
 !>   to 1000 k + 10 j + i + step/4 (exact in binary), and three rows of /diagnostics/{a,b}
 !>   where row r holds a = r, b = -r on rank 0 and garbage elsewhere (only rank 0 counts);
-!>   between the two snapshots, in the same file, four samples s = 1..4 of the 3-column tables
+!>   between the two snapshots, in the same file, 600 samples s = 1..600 of the 3-column tables
 !>   /particles/{x,y,omega} (table k, column c: 100 k + 10 s + c + 1/4) and of the series
 !>   /particles/t (s/8), rank 0's values, garbage elsewhere; the first sample writes the tables
-!>   before the series, the others the series first. Then the attributes, rank 0's value
+!>   before the series, the others the series first (600 rows: dkt_io holds up to 256 rows of a
+!>   dataset in memory, so they reach the file when a store fills, twice, and the last 88 when
+!>   the first attribute is set). Then the attributes, rank 0's value
 !>   given, a rank-dependent one elsewhere: /particles count = 3 (an integer, first written as
 !>   7 and replaced), /particles/x unit = 'cm' (on a dataset), /diagnostics pattern =
 !>   'repeated' and note = '' (strings), /checks/nested ratio = 0.375 (a real, creating both
@@ -39,7 +41,7 @@ program test_io
   character(len=9), parameter :: names(nf) = &
                                  [character(len=9) :: 'rho', 'ux', 'uy', 'vorticity', 'pressure']
   character(len=*), parameter :: nl = new_line('a')
-  integer, parameter :: ncol = 3, nsamples = 4
+  integer, parameter :: ncol = 3, nsamples = 600
   character(len=5), parameter :: tnames(3) = [character(len=5) :: 'x', 'y', 'omega']
   type(MPI_Comm) :: comm
   type(io_t) :: io
