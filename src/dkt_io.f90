@@ -206,9 +206,11 @@ contains
   !! cut it back to that step: the datasets of the series groups `groups` keep their first
   !! `samples` samples, their sub-groups (the episodes written at the end of a run) are removed,
   !! field groups of later steps are removed, and the XDMF sidecar is rebuilt from the field
-  !! groups that remain. Arguments as io_open; err as io_open.
+  !! groups that remain. Arguments as io_open; err as io_open, also when a group marked
+  !! `required` is missing or a dataset holds fewer than `samples` samples (a file not written
+  !! up to the checkpoint: resumed, the run would lose them); the file is closed then.
   subroutine io_reopen(io, dir, name, comm, nx, ny, y0, nyl, dx, step, samples, groups, &
-                       drop_at_step, field_order, err)
+                       required, drop_at_step, field_order, err)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: dir, name
     type(MPI_Comm), intent(in) :: comm
@@ -217,6 +219,7 @@ contains
     integer, intent(in) :: step           !! the checkpoint's step
     integer, intent(in) :: samples        !! series samples written up to that step
     character(len=*), intent(in) :: groups(:) !! series groups, e.g. 'particles'
+    logical, intent(in) :: required(:)  !! groups(k) must be there when samples > 0
     logical, intent(in) :: drop_at_step   !! also remove the field group of `step` (it was the
                                           !! final output of a run, not a scheduled one)
     character(len=*), intent(in) :: field_order(:) !! the order the fields were written in
@@ -224,6 +227,7 @@ contains
     integer(hid_t) :: fapl
     integer :: hdferr, k
     logical :: bad, any_bad, exists
+    logical, allocatable :: there(:)
     character(len=:), allocatable :: base
 
     err = ''
@@ -261,11 +265,23 @@ contains
     n_open_files = n_open_files + 1
     call set_open(io, comm, nx, ny, y0, nyl, dx)
 
+    ! every group is checked before anything is cut, so that a refused file stays as it was
+    allocate (there(size(groups)))
     do k = 1, size(groups)
-      call h5lexists_f(io%file_id, trim(groups(k)), exists, hdferr)
+      call h5lexists_f(io%file_id, trim(groups(k)), there(k), hdferr)
       call check(hdferr, 'h5lexists_f('//trim(groups(k))//')', io%path)
-      if (.not. exists) cycle
-      call cut_group(trim(groups(k)))
+      if (there(k)) then
+        call cut_group(trim(groups(k)), .false.)
+      else if (required(k) .and. samples > 0 .and. len(err) == 0) then
+        call short('has no /'//trim(groups(k)))
+      end if
+    end do
+    if (len(err) > 0) then
+      call io_close(io)
+      return
+    end if
+    do k = 1, size(groups)
+      if (there(k)) call cut_group(trim(groups(k)), .true.)
     end do
     call h5lexists_f(io%file_id, 'fields', exists, hdferr)
     call check(hdferr, 'h5lexists_f(fields)', io%path)
@@ -274,6 +290,17 @@ contains
     call check(hdferr, 'h5fflush_f', io%path)
     if (io%rank == 0) call xdmf_write(io%xdmf)
   contains
+    !> err for a file that lacks samples the checkpoint counts: `what` it has instead.
+    subroutine short(what)
+      character(len=*), intent(in) :: what
+      character(len=20) :: n
+      write (n, '(i0)') samples
+      err = 'the output file '''//io%path//''' '//what//', but the checkpoint counts '// &
+            trim(n)//' samples: the file was not written up to the checkpoint''s step (a run '// &
+            'killed before its file was flushed?), and resumed the run would lose them; resume '// &
+            'with the file the checkpoint was written with, or run the scene again'
+    end subroutine short
+
     !> The members of group `path`: names and kinds (H5G_DATASET_F, H5G_GROUP_F, ...).
     subroutine members(path, names, kinds)
       character(len=*), intent(in) :: path
@@ -289,40 +316,47 @@ contains
       end do
     end subroutine members
 
-    subroutine cut_group(path)
+    !> Check (cut = .false.) that every dataset of group `path` holds at least `samples`
+    !! samples, setting err for the first that does not; or (cut = .true.) remove its
+    !! sub-groups and cut its datasets to `samples` samples.
+    subroutine cut_group(path, cut)
       character(len=*), intent(in) :: path
+      logical, intent(in) :: cut
       character(len=64), allocatable :: names(:)
       integer, allocatable :: kinds(:)
       integer(hid_t) :: dset, space
       integer(hsize_t) :: dims(2), maxdims(2)
       integer :: j, nd
+      character(len=20) :: held
+      character(len=:), allocatable :: what
       call members(path, names, kinds)
       do j = 1, size(names)
-        if (kinds(j) == H5G_GROUP_F) then
-          call h5ldelete_f(io%file_id, path//'/'//trim(names(j)), hdferr)
-          call check(hdferr, 'h5ldelete_f('//path//'/'//trim(names(j))//')', io%path)
+        what = path//'/'//trim(names(j))
+        if (kinds(j) == H5G_GROUP_F .and. cut) then
+          call h5ldelete_f(io%file_id, what, hdferr)
+          call check(hdferr, 'h5ldelete_f('//what//')', io%path)
         else if (kinds(j) == H5G_DATASET_F) then
-          call h5dopen_f(io%file_id, path//'/'//trim(names(j)), dset, hdferr)
-          call check(hdferr, 'h5dopen_f('//path//'/'//trim(names(j))//')', io%path)
+          call h5dopen_f(io%file_id, what, dset, hdferr)
+          call check(hdferr, 'h5dopen_f('//what//')', io%path)
           call h5dget_space_f(dset, space, hdferr)
-          call check(hdferr, 'h5dget_space_f('//path//'/'//trim(names(j))//')', io%path)
+          call check(hdferr, 'h5dget_space_f('//what//')', io%path)
           call h5sget_simple_extent_ndims_f(space, nd, hdferr)
-          call check(hdferr, 'h5sget_simple_extent_ndims_f('//path//'/'//trim(names(j))// &
-                     ')', io%path)
+          call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
           call h5sget_simple_extent_dims_f(space, dims(1:nd), maxdims(1:nd), hdferr)
-          call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//path//'/'// &
-                     trim(names(j))//')', io%path)
+          call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
           call h5sclose_f(space, hdferr)
           call check(hdferr, 'h5sclose_f', io%path)
           ! samples run along the last HDF5 dimension (write_rows)
-          if (dims(nd) < samples) call fatal_local('io_reopen: '//path//'/'// &
-                                                   trim(names(j))//' in '''//io%path// &
-                                                   ''' holds fewer samples than the checkpoint')
-          dims(nd) = samples
-          call h5dset_extent_f(dset, dims(1:nd), hdferr)
-          call check(hdferr, 'h5dset_extent_f('//path//'/'//trim(names(j))//')', io%path)
+          if (.not. cut .and. dims(nd) < samples .and. len(err) == 0) then
+            write (held, '(i0)') dims(nd)
+            call short('holds '//trim(held)//' samples of /'//what)
+          else if (cut) then
+            dims(nd) = samples
+            call h5dset_extent_f(dset, dims(1:nd), hdferr)
+            call check(hdferr, 'h5dset_extent_f('//what//')', io%path)
+          end if
           call h5dclose_f(dset, hdferr)
-          call check(hdferr, 'h5dclose_f('//path//'/'//trim(names(j))//')', io%path)
+          call check(hdferr, 'h5dclose_f('//what//')', io%path)
         end if
       end do
     end subroutine cut_group

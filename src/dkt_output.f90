@@ -60,6 +60,7 @@ contains
       call io_reopen(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
                      sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, sim%samples, &
                      [character(len=11) :: 'particles', 'diagnostics'], &
+                     [sim%particles_on, sim%pair_on], &
                      sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
                      field_names, err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &

@@ -9,6 +9,7 @@ attributes, the CSV file and the XDMF sidecar byte for byte.
 
 from __future__ import annotations
 
+import shutil
 import signal
 import subprocess
 from pathlib import Path
@@ -168,6 +169,40 @@ def test_a_run_killed_after_a_checkpoint_resumes_to_the_same_bits(tmp_path: Path
     assert step % 700 == 0 and 700 <= step < 3000, step
     run("case0.nml", 3, sets, out, extra=["--restart", str(checkpoint)])
     assert_same_output(reference, out)
+
+
+def test_a_run_file_short_of_the_checkpoints_samples_is_refused_and_left_alone(
+    tmp_path: Path,
+) -> None:
+    """The run file must hold every sample the checkpoint counts. A file without /particles,
+    and one whose /particles/t is shorter (what a run killed before its file was flushed can
+    leave), are refused on every rank with one message naming the file and what it lacks, a
+    non-zero status, and nothing in the file cut back. Before this check, the first resumed
+    with exit 0 and kept only the samples after the checkpoint."""
+    sets = [*SETS, "run.steps=200", "run.checkpoint_every=100", "output.series_interval=1e-9"]
+    run("case0.nml", 2, sets, tmp_path / "run")
+    damage = {
+        "has no /particles": lambda h5: h5.__delitem__("particles"),
+        "holds 50 samples of /particles/t": lambda h5: h5["particles/t"].resize((50,)),
+    }
+    for k, (expected, harm) in enumerate(damage.items()):
+        out = tmp_path / f"damaged{k}"
+        shutil.copytree(tmp_path / "run", out)
+        with h5py.File(out / "case0.h5", "r+") as h5:
+            harm(h5)
+        before = datasets(out / "case0.h5")
+        args = [str(INPUT / "case0.nml")]
+        for s in [*sets, f"output.dir={out}"]:
+            args += ["--set", s]
+        checkpoint = out / "case0_chk_000000100.h5"
+        proc = run_args([*args, "--restart", str(checkpoint)], ranks=2, timeout=60)
+        assert proc.returncode != 0, f"{expected}: resumed\n{proc.stdout}"
+        message = proc.stderr
+        assert expected in message and str(out / "case0.h5") in message, message
+        assert "the checkpoint counts 101 samples" in message, message
+        after = datasets(out / "case0.h5")
+        assert after.keys() == before.keys()
+        assert all(np.array_equal(after[n], before[n], equal_nan=True) for n in before)
 
 
 def test_wall_limit_checkpoints_and_stops_by_itself(tmp_path: Path) -> None:
