@@ -589,7 +589,6 @@ contains
     real(wp) :: v
 
     call require_open(io, 'io_write_attribute')
-    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     v = value
     call MPI_Bcast(v, 1, mpi_wp, 0, io%comm)
     call set_attribute(io, path, name, r=v)
@@ -603,7 +602,6 @@ contains
     integer :: v
 
     call require_open(io, 'io_write_attribute')
-    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     v = value
     call MPI_Bcast(v, 1, MPI_INTEGER, 0, io%comm)
     call set_attribute(io, path, name, i=v)
@@ -618,7 +616,6 @@ contains
     integer :: n
 
     call require_open(io, 'io_write_attribute')
-    call flush_pending(io) ! the datasets held so far exist in the file, e.g. /particles/x
     ! The length first: the other ranks' strings may be longer or shorter than rank 0's.
     n = len(value)
     call MPI_Bcast(n, 1, MPI_INTEGER, 0, io%comm)
@@ -743,7 +740,6 @@ contains
     type(pending_t), allocatable :: grown(:)
     integer :: k, idx, ncols
     logical :: full
-    character(len=80) :: msg
 
     ncols = size(values, 1)
     full = .false.
@@ -765,18 +761,8 @@ contains
         allocate (io%pending(idx)%rows(ncols, max(1, min(MAX_PENDING, PENDING_VALUES/ncols))))
       end if
       associate (p => io%pending(idx))
-        if (p%ndims /= ndims) then
-          write (msg, '(a,i0,a)') ' has ', p%ndims, ' dimensions; write it with '// &
-            trim(merge('io_write_series', 'io_write_table ', p%ndims == 1))
-          call fatal_local(caller//': '//p%group//'/'//p%name//' in '''//io%path//''''// &
-                           trim(msg))
-        end if
-        if (size(p%rows, 1) /= ncols) then
-          write (msg, '(a,i0,a,i0)') ' has ', size(p%rows, 1), ' columns; the new row has ', &
-            ncols
-          call fatal_local(caller//': '//p%group//'/'//p%name//' in '''//io%path//''''// &
-                           trim(msg))
-        end if
+        call require_shape(io, caller, p%group//'/'//p%name, p%ndims, size(p%rows, 1), ndims, &
+                           ncols)
         p%n = p%n + 1
         p%rows(:, p%n) = values(:, k)
         full = full .or. p%n == size(p%rows, 2)
@@ -784,6 +770,26 @@ contains
     end do
     if (full) call flush_pending(io)
   end subroutine hold_rows
+
+  !> Stop the run when rows of kind `ndims` (1 series, 2 table) and `ncols` columns go to the
+  !! dataset `what`, which has `has_ndims` dimensions and `has_cols` columns (the file's
+  !! dataset, or the rows held for it).
+  subroutine require_shape(io, caller, what, has_ndims, has_cols, ndims, ncols)
+    type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: caller, what
+    integer, intent(in) :: has_ndims, has_cols, ndims, ncols
+    character(len=80) :: msg
+
+    if (has_ndims /= ndims) then
+      write (msg, '(a,i0,a)') ' has ', has_ndims, ' dimensions; write it with '// &
+        trim(merge('io_write_series', 'io_write_table ', has_ndims == 1))
+    else if (has_cols /= ncols) then
+      write (msg, '(a,i0,a,i0)') ' has ', has_cols, ' columns; the new row has ', ncols
+    else
+      return
+    end if
+    call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
+  end subroutine require_shape
 
   !> Append the held rows to their datasets, in the order the datasets were first used, and
   !! empty the stores. Collective.
@@ -808,7 +814,6 @@ contains
     integer :: hdferr, lo, stored, ndims
     logical :: exists
     character(len=:), allocatable :: what, caller
-    character(len=80) :: msg
 
     ! A series uses the last entry of the (column, sample) arrays only.
     ndims = p%ndims
@@ -845,19 +850,12 @@ contains
     call check(hdferr, 'h5dget_space_f('//what//')', io%path)
     call h5sget_simple_extent_ndims_f(fspace, stored, hdferr)
     call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
-    if (stored /= ndims) then
-      write (msg, '(a,i0,a)') ' has ', stored, ' dimensions; write it with '// &
-        trim(merge('io_write_series', 'io_write_table ', stored == 1))
-      call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
-    end if
+    call require_shape(io, caller, what, stored, 1, ndims, 1)
     call h5sget_simple_extent_dims_f(fspace, dims(lo:), maxdims(lo:), hdferr)
     call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
     call h5sclose_f(fspace, hdferr)
     call check(hdferr, 'h5sclose_f', io%path)
-    if (ndims == 2 .and. dims(1) /= ncols) then
-      write (msg, '(a,i0,a,i0)') ' has ', dims(1), ' columns; the new row has ', ncols
-      call fatal_local(caller//': '//what//' in '''//io%path//''''//trim(msg))
-    end if
+    if (ndims == 2) call require_shape(io, caller, what, 2, int(dims(1)), 2, int(ncols))
     dims(2) = dims(2) + nrows
     call h5dset_extent_f(dset, dims(lo:), hdferr)
     call check(hdferr, 'h5dset_extent_f('//what//')', io%path)
@@ -902,9 +900,10 @@ contains
   end function open_object
 
   !> Write attribute `name` (one of r, i, s present) of the object at `path`, created as a group
-  !! if missing, replacing an attribute of that name.
+  !! if missing, replacing an attribute of that name. The held rows are written first, so that
+  !! a dataset held so far (e.g. /particles/x) is in the file and not made a group.
   subroutine set_attribute(io, path, name, r, i, s)
-    type(io_t), intent(in) :: io
+    type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: path, name
     real(wp), intent(in), optional :: r
     integer, intent(in), optional :: i
@@ -915,6 +914,7 @@ contains
 
     if (len_trim(name) == 0) call fatal_local('io_write_attribute: empty attribute name for '''// &
                                               trim(path)//'''')
+    call flush_pending(io)
     obj = open_object(io, path)
     call h5aexists_f(obj, trim(name), exists, hdferr)
     call check(hdferr, 'h5aexists_f('//trim(path)//' '//trim(name)//')', io%path)
