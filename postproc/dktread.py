@@ -310,9 +310,10 @@ def _diameters(nml: dict[str, dict[str, list[str]]], count: int,
     return d
 
 
-def open_run(path: str | Path, need_particles: int = 1) -> Run:
+def open_run(path: str | Path, need_particles: int = 1, warn: bool = True) -> Run:
     """Read a dktlbm run file. RunFileError when the file is missing, not HDF5, not a dktlbm
-    run (no /particles group), or holds fewer than `need_particles` particles."""
+    run (no /particles group), or holds fewer than `need_particles` particles. A run that
+    stopped early is read as far as it got, with a warning on stderr unless not `warn`."""
     import h5py
 
     with open_h5(path) as h5:
@@ -334,7 +335,7 @@ def open_run(path: str | Path, need_particles: int = 1) -> Run:
         except (KeyError, ValueError, TypeError, IndexError, OSError) as exc:
             raise RunFileError(path, f"not a readable dktlbm run file ({exc})") from None
     note = run.stop_note()
-    if note:
+    if note and warn:
         print(f"warning: {note}", file=sys.stderr)
     return run
 

@@ -40,7 +40,7 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dktread import (
@@ -413,8 +413,11 @@ class Verdict:
     neither closing in (closing_in) nor out of line (out_of_line) at its end: its pattern
     would survive doubling t_end as far as this run can tell. A run that ended by
     window_escape is not settled: the pair was lost, and the upper particle may come back (a
-    bigger window can tell). Anything else (a guard, an error, a signal, a run still going, no
-    file) is not a pattern at all: `status` says what."""
+    bigger window can tell). A run stopped cleanly before its end (`status` 'signal' or
+    'wall_limit': it wrote a checkpoint) after a kissing episode is classified up to where it
+    stopped (`partial`): its pattern so far, settled when 'repeated'. Anything else (a guard,
+    an error, a run still going or killed, no file, a stopped run without an episode) is not
+    a pattern at all: `status` says what."""
 
     status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing', 'failed'
     pattern: str = ""
@@ -429,10 +432,11 @@ class Verdict:
     dh: float | None = None
     t_ref: float = math.nan  # s, t* = t / t_ref (the run file's)
     run_pattern: str = ""  # the run's own pattern, when `pattern` is a class of it (judge)
+    partial: bool = False  # stopped early; classified by its episodes so far
 
     @property
     def classified(self) -> bool:
-        return self.status in ("finished", "window_escape")
+        return self.status in ("finished", "window_escape") or self.partial
 
 
 def judge(v: Verdict, kiss: bool) -> Verdict:
@@ -479,8 +483,53 @@ def out_of_line(pair) -> tuple[bool, str]:
                                     f"the channel")
 
 
-def verdict(h5: Path) -> Verdict:
-    """The Verdict of the run file `h5` (see Verdict)."""
+STOPPED_CLEANLY = ("signal", "wall_limit")  # stop reasons after which a checkpoint is written
+
+
+def cut_run(run, until: float):
+    """The run `run` (dktread.Run) as if it had finished at t_end = `until` (s): its samples
+    up to that run's last step (t_end over the time step, rounded as the program rounds it),
+    /diagnostics with them, and the kissing episodes that start by the last of them, one
+    still going there left open. A run to `until` writes these samples, and one more: the
+    closing sample at its last step, when that is off the sampling interval."""
+    import numpy as np
+
+    steps = math.floor(until / run.dt + 0.5)  # as the program counts them (nint)
+    edge = (steps + 0.5) * run.dt
+    n = int(run.t.searchsorted(edge, side="right"))
+    diag = run.diagnostics
+    if diag is not None and "t" in diag:
+        t = diag["t"].ravel()
+        m = int(t.searchsorted(edge, side="right"))
+        cut = {k: v[:m] if isinstance(v, np.ndarray) and v.shape[:1] == t.shape else v
+               for k, v in diag.items()}
+        last = float(t[m - 1]) if m else -math.inf
+        starts = np.asarray(diag.get("episodes_start", np.zeros(0)), dtype=float)
+        ends = np.asarray(diag.get("episodes_end", np.zeros(0)), dtype=float)
+        keep = starts <= last
+        starts, ends = starts[keep], ends[keep]
+        still = bool(ends.size and ends[-1] > last) or bool(
+            ends.size and ends.size == keep.size and _truthy(diag["attrs"].get("open_episode")))
+        cut["episodes_start"], cut["episodes_end"] = starts, np.minimum(ends, last)
+        cut["attrs"] = {**diag["attrs"], "pattern": pattern_name(starts.size),
+                        "episodes": starts.size, "open_episode": int(still)}
+        diag = cut
+    return replace(run, t=run.t[:n], series={k: a[:n] for k, a in run.series.items()},
+                   window_offset=None if run.window_offset is None else run.window_offset[:n],
+                   steps=steps, stop_reason="finished", diagnostics=diag)
+
+
+def _truthy(value) -> bool:
+    try:
+        return bool(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def verdict(h5: Path, until: float | None = None) -> Verdict:
+    """The Verdict of the run file `h5` (see Verdict). With `until` (s), the Verdict the run
+    would have had with t_end = `until`, judged on its samples up to there as if it had
+    finished there (cut_run); status 'short' when its samples do not reach that time."""
     status = run_status(h5)
     if status == "missing":
         return Verdict("missing", why="no run file")
@@ -489,17 +538,32 @@ def verdict(h5: Path) -> Verdict:
             reason = stop_reason(f) or status
     except RunFileError as exc:
         return Verdict("failed", why=str(exc))
-    if status != "finished":
+    stopped = status != "finished"
+    if stopped and reason not in STOPPED_CLEANLY:
         return Verdict(reason if reason != "finished" else "failed",
                        why=f"the run did not finish (stop_reason: {reason})")
     try:
-        pair = pair_of(open_run(h5, need_particles=2))
+        run = open_run(h5, need_particles=2, warn=False)  # the Verdict says why
+        if until is not None:
+            if not run.t[-1] >= until - 0.5 * run.dt:
+                return Verdict("short", why=f"its samples end at t = {run.t[-1]:.4g} s, "
+                                            f"before {until:.4g} s")
+            run, stopped, reason = cut_run(run, until), False, "finished"
+        pair = pair_of(run)
     except RunFileError as exc:
         return Verdict("failed", why=str(exc))
-    run = pair.run
     end_t = float(pair.t[-1])
     t_end = run.steps * run.dt if run.steps > 0 and math.isfinite(run.dt) else end_t
     starts = [e.start for e in pair.episodes]
+    if stopped:
+        if not starts:
+            return Verdict(reason, why=f"the run did not finish (stop_reason: {reason}) and "
+                                       f"had no kissing episode by t = {end_t:.4g} s")
+        return Verdict(reason, pair.pattern, "", len(starts), starts[0], t_end, end_t,
+                       pair.pattern == "repeated",
+                       f"stopped ({reason}) at t = {end_t:.4g} s of {t_end:.4g} s, "
+                       f"{len(starts)} episode{'s' if len(starts) != 1 else ''} by then "
+                       f"(episodes only add)", pair.gamma, pair.dh, run.t_ref, partial=True)
     half = pattern_name(sum(1 for s in starts if s <= 0.5 * t_end * (1 + 1e-12)))
     v = Verdict(reason if reason == "window_escape" else "finished", pair.pattern, half,
                 len(starts), starts[0] if starts else None, t_end, end_t, gamma=pair.gamma,
@@ -602,12 +666,15 @@ class Bisector:
         h = value if c.key == "dh" else _base_value(c.base, c.sets, "dh")
         return PlannedRun(run_id, g, h, c.out / run_id, shlex.join(args))
 
-    def _record(self, value: float, r: PlannedRun, v: Verdict, above: float) -> None:
-        """One bisect.csv row per run, however often the search reads it (a point settled
-        before is read by the narrowing pass, and again if it becomes a step's point)."""
-        if any(row["dir"] == str(r.dir) for row in self.rows):
+    def _record(self, value: float, r: PlannedRun, v: Verdict, above: float,
+                cut: bool = False) -> None:
+        """One bisect.csv row per run and end time, however often the search reads it (a point
+        settled before is read by the narrowing pass, and again if it becomes a step's point);
+        a longer run read up to an earlier end time (known) has a row for each."""
+        if any(row["dir"] == str(r.dir) and row["t_end"] == f"{v.t_end:.6g}"
+               for row in self.rows):
             return
-        wall = wall_seconds(r)
+        wall = None if cut else wall_seconds(r)  # a cut's time is its longer run's
         self.rows.append({
             "row": "run", "value": f"{value:.8g}", "pattern": v.run_pattern or v.status,
             "episodes": str(v.episodes) if v.classified else "",
@@ -618,37 +685,73 @@ class Bisector:
             "wall_s": "" if wall is None else f"{wall:.3g}", "dir": str(r.dir),
             "above": f"{above:g}"})
 
+    def known(self, value: float, t_end: float,
+              above: float) -> tuple[Verdict, PlannedRun] | None:
+        """The Verdict of `value` at (t_end, above) from the runs already in the directory,
+        without running anything, or None: its own run when finished, or when stopped after
+        the episodes that settle it (judge); else the shortest longer run of the value (same
+        window, another t_end in its id) whose samples reach t_end, read up to t_end (the
+        run to t_end would have given the same samples)."""
+        c, r = self.cfg, self.planned(value, t_end, above)
+        if r.h5.exists():
+            v = judge(verdict(r.h5), c.kiss)
+            if v.status in ("finished", "window_escape"):
+                print(f"reuse  {r.id}: {r.h5} is finished", flush=True)
+                return v, r
+            if v.partial and v.settled:
+                print(f"reuse  {r.id}: {r.h5} {v.why}", flush=True)
+                return v, r
+        stem = self.planned(value, c.t_end, c.above).id  # the ids: stem[_t<t_end>][_a<above>]
+        longer = []
+        for d in c.out.glob(f"{stem}_t*"):
+            try:
+                t_long = float(d.name[len(stem) + 2:].partition("_a")[0])
+            except ValueError:
+                continue
+            if t_long > t_end and d.name == self.planned(value, t_long, above).id:
+                longer.append(t_long)
+        for t_long in sorted(longer):
+            other = self.planned(value, t_long, above)
+            v = judge(verdict(other.h5, until=t_end), c.kiss)
+            if v.status == "finished":
+                print(f"reuse  {other.id} up to t_end = {t_end:g} s (for {r.id})", flush=True)
+                return v, other
+        return None
+
     def settle(self, values: list[float],
                known_only: bool = False) -> dict[float, tuple[Verdict, PlannedRun]]:
         """Run each value until its pattern is settled (Verdict): at the first t_end and
         window.above; with t_end doubled while a finished run is not settled, up to max_t_end;
         with window.above doubled after a window escape, up to max_above. SweepError for a run
-        that failed and for a point not settled within either limit. With `known_only`, run
-        nothing: return the values that the finished runs in the directory settle."""
+        that failed and for a point not settled within either limit. A point the directory's
+        runs already answer (known) is not run again. With `known_only`, run nothing: return
+        the values that the runs in the directory settle."""
         c = self.cfg
         target = {v: (c.t_end, c.above) for v in values}
         done: dict[float, tuple[Verdict, PlannedRun]] = {}
         while target:
             runs = {v: self.planned(v, t, a) for v, (t, a) in target.items()}
+            have = {v: self.known(v, t, a) for v, (t, a) in target.items()}
             if known_only:
-                for value in [v for v, r in runs.items() if run_status(r.h5) != "finished"]:
+                for value in [v for v, got in have.items() if got is None]:
                     del runs[value], target[value]
+            for value, got in have.items():
+                if got is not None:
+                    runs[value] = got[1]
             for r in runs.values():
                 self.runs.setdefault(r.id, r)
-            todo = [r for r in runs.values() if run_status(r.h5) != "finished"]
-            for r in runs.values():
-                if r not in todo:
-                    print(f"reuse  {r.id}: {r.h5} is finished", flush=True)
+            todo = [r for value, r in runs.items() if have[value] is None]
             if todo:
                 self.launches += 1
                 self.launch(todo, list(self.runs.values()))
             for value, r in runs.items():
                 t_end, above = target[value]
-                v = judge(verdict(r.h5), c.kiss)
-                self._record(value, r, v, above)
+                v = have[value][0] if have[value] is not None else judge(verdict(r.h5), c.kiss)
+                self._record(value, r, v, above,
+                             cut=r.id != self.planned(value, t_end, above).id)
                 name = f"{c.key} = {value:.8g}"
                 at = f"t_end = {t_end:g} s, window.above = {above:g} D_1"
-                if not v.classified:
+                if not v.classified or v.partial and not v.settled:
                     raise SweepError(
                         f"run {r.dir} ({name}, {at}) gave no pattern: "
                         f"{v.status}: {v.why}; see {r.dir / 'run.log'}")
@@ -817,7 +920,9 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
     """One regime.csv row per planned run: its pattern, number of kissing episodes and the
     start of the first one (s); pattern 'missing' without a run file, 'stopped' when the run is
     not finished but has a checkpoint to resume from (<name>.checkpoint: stopped at a time
-    limit, or still running), 'failed' when the file is not a finished run otherwise."""
+    limit, or still running) or, when it had a kissing episode by then, the pattern so far
+    (status the stop reason; settled only when 'repeated': episodes only add), 'failed' when
+    the file is not a finished run otherwise."""
     rows = []
     for r in plan:
         status = run_status(r.h5)
@@ -834,6 +939,9 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
                 dh = dh if dh is not None else v.dh
             else:
                 pattern = "failed"
+        elif status == "stopped" and v.partial:  # stopped after a kiss: the pattern so far
+            pattern, episodes = v.pattern, str(v.episodes)
+            first = f"{v.first_kiss:.6g}" if v.first_kiss is not None else ""
         rows.append({
             "gamma": "" if gamma is None else _fmt(gamma),
             "dh": "" if dh is None else _fmt(dh),

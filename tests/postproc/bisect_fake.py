@@ -14,7 +14,10 @@ log with a `performance:` line, for a pair whose pattern is a known function of 
   D_1, default 15) when that is before T: by window_escape at 0.375 T with A = 15, at
   0.75 T with A = 30; with A = 60 the run finishes;
 - V >= GUARD: stopped by a guard at 0.5 T, exit status 3;
-- V >= FAKE_NEVER (from the environment; default: no such band): no episode ('never').
+- V >= FAKE_NEVER (from the environment; default: no such band): no episode ('never');
+- FAKE_SIGNAL_AT (s, from the environment): a run that would go on past it stops there by
+  a signal, as a run does at SIGUSR1 or SIGTERM (exit status 0, the episodes so far written,
+  <name>.checkpoint naming a checkpoint, which is not written).
 
 An episode counts when it starts within the run. The environment may move THRESHOLD
 (FAKE_THRESHOLD). `python3 bisect_fake.py ARGS...` acts as the program.
@@ -64,6 +67,9 @@ def behaviour(value: float, t_end: float, above: float) -> tuple[list[float], st
         reason, t_stop = "guard: non-finite velocity", 0.5 * t_end
     elif value >= ESCAPE and 0.75 * t_end * above / 30.0 < t_end:
         reason, t_stop = "window_escape", 0.75 * t_end * above / 30.0
+    signal_at = float(os.environ.get("FAKE_SIGNAL_AT", "inf"))
+    if signal_at < t_stop:
+        reason, t_stop = "signal", signal_at
     return [s for s in starts if s <= t_stop], reason, t_stop, v_upper
 
 
@@ -122,6 +128,9 @@ def write(out: Path, name: str, key: str, value: float, t_end: float, above: flo
             e = d.create_group("episodes")
             e["start"] = np.asarray(starts)
             e["end"] = np.asarray(starts) + 0.2
+    if reason == "signal":  # the program names its last checkpoint in <name>.checkpoint
+        (out / f"{name}.checkpoint").write_text(
+            f"{out / f'{name}_chk_{round(t_stop / DT):09d}.h5'}\n")
     (out / f"{name}.log").write_text(
         f"stand-in dktlbm\nperformance:      1.00 MLUPS (1 cells x 1 steps in     "
         f"{0.01 * t_stop:.3f} s on 1 ranks)\n"

@@ -343,7 +343,9 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
     finishes with 'never'. The two ends of the bracket have different patterns, each settled
     (bisect.csv), each run that left the window was followed by one with the window doubled,
     each finished run not settled by one with t_end doubled, the bracket is at most 1.5 wide,
-    and pattern.py reads the same pattern from each end's run file."""
+    and pattern.py reads the same pattern from each end's run file. A longer run of a point
+    read up to a shorter one's t_end (sweep.verdict with `until`) gives the shorter run's
+    verdict."""
     out = tmp_path / "real"
     t0 = time.monotonic()
     proc = sweep_cli(
@@ -403,6 +405,20 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
             timeout=60,
         )
         assert json.loads(report.stdout)["pattern"] == end["pattern"]
+    # a longer run of a point, read up to a shorter run's t_end (as a later search reads it,
+    # Bisector.known), gives that run's verdict
+    pairs = [(r, q) for r in runs for q in runs
+             if q["value"] == r["value"] and q["above"] == r["above"]
+             and float(q["t_end"]) > float(r["t_end"]) and r["status"] == "finished"
+             and float(q["end_t"]) >= float(r["t_end"])]
+    assert pairs, "the test must compare a longer run with a shorter one"
+    for r, q in pairs:
+        short = sweep.verdict(Path(r["dir"]) / "case2.h5")
+        cut = sweep.verdict(Path(q["dir"]) / "case2.h5", until=float(r["t_end"]))
+        assert [(v.status, v.pattern, v.half, v.episodes, v.first_kiss, v.settled)
+                for v in (cut, short)] == [(short.status, short.pattern, short.half,
+                                            short.episodes, short.first_kiss,
+                                            short.settled)] * 2, (r["dir"], q["dir"])
 
 
 def test_a_resumed_search_lists_each_run_once(tmp_path: Path, base: Path) -> None:
@@ -467,3 +483,110 @@ def test_kiss_mode_settles_a_kiss_at_once_and_never_as_before(
     assert "start" not in proc.stdout and "reuse" in proc.stdout
     assert proc.stdout.strip().splitlines()[-1] == summary
     assert "(kisses) and" in summary and "(never)" in summary
+
+
+def _run_rows(out: Path) -> dict[tuple[str, str], dict[str, str]]:
+    """bisect.csv's run rows by (value, t_end)."""
+    rows = csv.DictReader((out / "bisect.csv").open())
+    return {(r["value"], r["t_end"]): r for r in rows if r["row"] == "run"}
+
+
+def _seed(b: sweep.Bisector, monkeypatch: pytest.MonkeyPatch, value: float, t_end: float,
+          signal_at: float | None) -> None:
+    """Run the stand-in for `value` to `t_end` as the search would name it, stopped by a
+    signal at `signal_at` s (None: not stopped)."""
+    if signal_at is None:
+        monkeypatch.delenv("FAKE_SIGNAL_AT", raising=False)
+    else:
+        monkeypatch.setenv("FAKE_SIGNAL_AT", str(signal_at))
+    fake.main(b.planned(value, t_end, 15.0).args[1:])
+    monkeypatch.delenv("FAKE_SIGNAL_AT", raising=False)
+
+
+def test_longer_and_stopped_runs_answer_without_running_again(
+    tmp_path: Path, base: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A point the directory's runs already answer is not run again, and the search gives
+    what a fresh one gives, row for row (pattern, episodes, first kiss, settled):
+    - a longer run of the value (its id with a later t_end) answers an earlier t_end, read up
+      to it: the late-band points were run only to 8 s, and their rows at t_end = 4 ('once',
+      closing in: not settled) come from those runs, the same as the fresh search's runs to 4;
+    - one of them stopped by a signal at 6.5 s, after its second kiss: 'repeated', settled,
+      also at t_end = 8;
+    - a run stopped after its first kiss settles nothing under the pattern rule (a second
+      may come): it is run again."""
+    fresh = tmp_path / "fresh"
+    _, summary = sweep.bisect(settings(base, fresh, tol=0.05), 1, FakeLaunch())
+    first = _run_rows(fresh)
+    values = sorted({float(v) for v, _ in first})
+    late = [v for v in values if fake.late(v)]
+    early = [v for v in values if v < fake.THRESHOLD and not fake.late(v)]
+    assert len(late) >= 2 and early, "the test needs late-band and early points"
+
+    out = tmp_path / "seeded"
+    seeder = sweep.Bisector(settings(base, out, tol=0.05), 1, FakeLaunch())
+    for k, value in enumerate(late):
+        _seed(seeder, monkeypatch, value, 8.0, 6.5 if k == 0 else None)
+    _seed(seeder, monkeypatch, early[0], T_END, 1.2)
+    launch = FakeLaunch()
+    _, summary2 = sweep.bisect(settings(base, out, tol=0.05), 1, launch)
+    assert summary2 == summary
+    ran = [(value, t_end) for call in launch.calls for value, t_end, _ in call]
+    assert not [v for v, _ in ran if v in late], ran
+    assert (early[0], T_END) in ran
+    second = _run_rows(out)
+    assert second.keys() == first.keys()
+    for key, row in first.items():
+        got = second[key]
+        assert [got[c] for c in ("pattern", "episodes", "first_kiss_t", "settled")] == [
+            row[c] for c in ("pattern", "episodes", "first_kiss_t", "settled")], (key, got)
+    for value in late:
+        cut = second[(f"{value:.8g}", "4")]
+        assert Path(cut["dir"]).name == f"g{value:.8g}_t8" and cut["wall_s"] == ""
+        assert (cut["pattern"], cut["settled"]) == ("once", "no")
+    stopped = second[(f"{late[0]:.8g}", "8")]
+    assert (stopped["status"], stopped["pattern"], stopped["settled"]) == (
+        "signal", "repeated", "yes")
+    assert second[(f"{early[0]:.8g}", "4")]["status"] == "finished"
+
+
+def test_kiss_mode_reuses_a_run_stopped_after_its_kiss(
+    tmp_path: Path, base: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With --kiss, a run stopped by a signal after its first kiss settles its point
+    ('kisses'; episodes only add): every kissing point of a fresh search, seeded as a run
+    stopped at 1.1 s (its kiss starts at 1.0), is not run again, while a 'never' point
+    stopped at 1.1 s (no kiss yet: it may still come) is run again. The bracket is the fresh
+    search's; collect shows each stopped run with its pattern so far ('once', not settled)."""
+    monkeypatch.setenv("FAKE_NEVER", "1.95")
+    fresh = tmp_path / "fresh"
+    cfg = settings(base, fresh, tol=0.05)
+    cfg.kiss = True
+    _, summary = sweep.bisect(cfg, 1, FakeLaunch())
+    values = sorted({float(v) for v, _ in _run_rows(fresh)})
+    kissing = [v for v in values if v < 1.95]
+    never = [v for v in values if v >= 1.95]
+    assert kissing and never
+
+    out = tmp_path / "seeded"
+    cfg = settings(base, out, tol=0.05)
+    cfg.kiss = True
+    seeder = sweep.Bisector(cfg, 1, FakeLaunch())
+    for value in kissing + never[:1]:
+        _seed(seeder, monkeypatch, value, T_END, 1.1)
+    launch = FakeLaunch()
+    _, summary2 = sweep.bisect(cfg, 1, launch)
+    assert bracket(summary2) == bracket(summary)
+    ran = {value for call in launch.calls for value, _, _ in call}
+    assert not ran & set(kissing) and never[0] in ran
+    rows = _run_rows(out)
+    for value in kissing:
+        row = rows[(f"{value:.8g}", "4")]
+        assert (row["status"], row["pattern"], row["settled"]) == ("signal", "once", "yes")
+
+    proc = sweep_cli("collect", "--out", out, env=dict(os.environ))
+    assert proc.returncode == 0, proc.stderr
+    regime = {r["gamma"]: r for r in csv.DictReader((out / "regime.csv").open())}
+    for value in kissing:
+        r = regime[f"{value:g}"]
+        assert (r["pattern"], r["status"], r["settled"]) == ("once", "signal", "no"), r
