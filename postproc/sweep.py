@@ -908,9 +908,12 @@ def bisect(cfg: BisectSettings, jobs: int, launch) -> tuple[Bisector, str]:
         if b.runs:
             write_plan(list(b.runs.values()), cfg.out)
     write_bisect(b, lo, hi)
-    n = len(b.rows)
+    n, files = len(b.rows), len({row["dir"] for row in b.rows})
+    count = (f"{n} run{'s' if n != 1 else ''}" if files == n else
+             f"{n} verdicts from {files} run{'s' if files != 1 else ''} (longer runs read up "
+             f"to earlier end times)")
     return b, (f"{cfg.key} threshold between {lo[0]:.8g} ({lo[1]}) and {hi[0]:.8g} ({hi[1]}), "
-               f"{n} run{'s' if n != 1 else ''}")
+               f"{count}")
 
 
 # ---------------------------------------------------------------- collect
