@@ -35,7 +35,7 @@ import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -547,6 +547,39 @@ def _episodes(t: np.ndarray, dr: np.ndarray, index_pairs: list[tuple[int, int]],
         last = is_open and k == len(index_pairs) - 1
         out.append(Episode(float(t[i0]), float(t[i1]), float(np.min(dr[i0:i1 + 1])), last))
     return out
+
+
+def run_until(run: Run, t_end: float) -> Run:
+    """`run` as if it had finished at `t_end` (s): its samples up to that run's last step
+    (t_end over the time step, rounded as the program rounds it), /diagnostics with them, and
+    the kissing episodes that start by the last of them, one still going there left open. A
+    run to `t_end` writes these samples, and one more: the closing sample at its last step,
+    when that is off the sampling interval."""
+    steps = math.floor(t_end / run.dt + 0.5)  # as the program counts them (nint)
+    edge = (steps + 0.5) * run.dt
+    n = int(run.t.searchsorted(edge, side="right"))
+    diag = run.diagnostics
+    if diag is not None and "t" in diag:
+        t = diag["t"].ravel()
+        m = int(t.searchsorted(edge, side="right"))
+        cut = {k: v[:m] if isinstance(v, np.ndarray) and v.shape[:1] == t.shape else v
+               for k, v in diag.items()}
+        last = float(t[m - 1]) if m else -math.inf
+        starts = np.asarray(diag.get("episodes_start", np.zeros(0)), dtype=float)
+        ends = np.asarray(diag.get("episodes_end", np.zeros(0)), dtype=float)
+        keep = starts <= last
+        a = diag["attrs"]
+        was_open = bool(_num(a["open_episode"])) if "open_episode" in a else False
+        # open at the cut: ending after it, or the run's open episode with none cut away
+        still = bool(keep.any() and (ends[keep][-1] > last or (keep.all() and was_open)))
+        cut["episodes_start"] = starts[keep]
+        cut["episodes_end"] = np.minimum(ends[keep], last)
+        cut["attrs"] = {**a, "pattern": pattern_name(int(keep.sum())),
+                        "episodes": int(keep.sum()), "open_episode": int(still)}
+        diag = cut
+    return replace(run, t=run.t[:n], series={k: v[:n] for k, v in run.series.items()},
+                   window_offset=None if run.window_offset is None else run.window_offset[:n],
+                   steps=steps, stop_reason="finished", diagnostics=diag)
 
 
 def pair_of(run: Run, limits: dict[str, float] | None = None,

@@ -40,7 +40,7 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 from dktread import (
@@ -53,6 +53,7 @@ from dktread import (
     parse_namelist,
     pattern_name,
     run_status,
+    run_until,
     stop_reason,
 )
 
@@ -419,7 +420,8 @@ class Verdict:
     an error, a run still going or killed, no file, a stopped run without an episode) is not
     a pattern at all: `status` says what."""
 
-    status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing', 'failed'
+    status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing',
+    # 'failed', 'short' (verdict with `until`: the samples end before it)
     pattern: str = ""
     half: str = ""
     episodes: int = 0
@@ -486,50 +488,10 @@ def out_of_line(pair) -> tuple[bool, str]:
 STOPPED_CLEANLY = ("signal", "wall_limit")  # stop reasons after which a checkpoint is written
 
 
-def cut_run(run, until: float):
-    """The run `run` (dktread.Run) as if it had finished at t_end = `until` (s): its samples
-    up to that run's last step (t_end over the time step, rounded as the program rounds it),
-    /diagnostics with them, and the kissing episodes that start by the last of them, one
-    still going there left open. A run to `until` writes these samples, and one more: the
-    closing sample at its last step, when that is off the sampling interval."""
-    import numpy as np
-
-    steps = math.floor(until / run.dt + 0.5)  # as the program counts them (nint)
-    edge = (steps + 0.5) * run.dt
-    n = int(run.t.searchsorted(edge, side="right"))
-    diag = run.diagnostics
-    if diag is not None and "t" in diag:
-        t = diag["t"].ravel()
-        m = int(t.searchsorted(edge, side="right"))
-        cut = {k: v[:m] if isinstance(v, np.ndarray) and v.shape[:1] == t.shape else v
-               for k, v in diag.items()}
-        last = float(t[m - 1]) if m else -math.inf
-        starts = np.asarray(diag.get("episodes_start", np.zeros(0)), dtype=float)
-        ends = np.asarray(diag.get("episodes_end", np.zeros(0)), dtype=float)
-        keep = starts <= last
-        starts, ends = starts[keep], ends[keep]
-        still = bool(ends.size and ends[-1] > last) or bool(
-            ends.size and ends.size == keep.size and _truthy(diag["attrs"].get("open_episode")))
-        cut["episodes_start"], cut["episodes_end"] = starts, np.minimum(ends, last)
-        cut["attrs"] = {**diag["attrs"], "pattern": pattern_name(starts.size),
-                        "episodes": starts.size, "open_episode": int(still)}
-        diag = cut
-    return replace(run, t=run.t[:n], series={k: a[:n] for k, a in run.series.items()},
-                   window_offset=None if run.window_offset is None else run.window_offset[:n],
-                   steps=steps, stop_reason="finished", diagnostics=diag)
-
-
-def _truthy(value) -> bool:
-    try:
-        return bool(float(value))
-    except (TypeError, ValueError):
-        return False
-
-
 def verdict(h5: Path, until: float | None = None) -> Verdict:
     """The Verdict of the run file `h5` (see Verdict). With `until` (s), the Verdict the run
     would have had with t_end = `until`, judged on its samples up to there as if it had
-    finished there (cut_run); status 'short' when its samples do not reach that time."""
+    finished there (dktread.run_until); status 'short' when its samples do not reach that time."""
     status = run_status(h5)
     if status == "missing":
         return Verdict("missing", why="no run file")
@@ -548,7 +510,7 @@ def verdict(h5: Path, until: float | None = None) -> Verdict:
             if not run.t[-1] >= until - 0.5 * run.dt:
                 return Verdict("short", why=f"its samples end at t = {run.t[-1]:.4g} s, "
                                             f"before {until:.4g} s")
-            run, stopped, reason = cut_run(run, until), False, "finished"
+            run, stopped, reason = run_until(run, until), False, "finished"
         pair = pair_of(run)
     except RunFileError as exc:
         return Verdict("failed", why=str(exc))
@@ -730,25 +692,22 @@ class Bisector:
         target = {v: (c.t_end, c.above) for v in values}
         done: dict[float, tuple[Verdict, PlannedRun]] = {}
         while target:
-            runs = {v: self.planned(v, t, a) for v, (t, a) in target.items()}
             have = {v: self.known(v, t, a) for v, (t, a) in target.items()}
             if known_only:
-                for value in [v for v, got in have.items() if got is None]:
-                    del runs[value], target[value]
-            for value, got in have.items():
-                if got is not None:
-                    runs[value] = got[1]
+                target = {v: ta for v, ta in target.items() if have[v] is not None}
+            asked = {v: self.planned(v, t, a) for v, (t, a) in target.items()}
+            # the run that answers each value: one already in the directory, else its own
+            runs = {v: have[v][1] if have[v] is not None else asked[v] for v in target}
             for r in runs.values():
                 self.runs.setdefault(r.id, r)
-            todo = [r for value, r in runs.items() if have[value] is None]
+            todo = [asked[v] for v in target if have[v] is None]
             if todo:
                 self.launches += 1
                 self.launch(todo, list(self.runs.values()))
             for value, r in runs.items():
                 t_end, above = target[value]
                 v = have[value][0] if have[value] is not None else judge(verdict(r.h5), c.kiss)
-                self._record(value, r, v, above,
-                             cut=r.id != self.planned(value, t_end, above).id)
+                self._record(value, r, v, above, cut=r.id != asked[value].id)
                 name = f"{c.key} = {value:.8g}"
                 at = f"t_end = {t_end:g} s, window.above = {above:g} D_1"
                 if not v.classified or v.partial and not v.settled:
