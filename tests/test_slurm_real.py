@@ -110,14 +110,36 @@ def job_field(job: str, field: str) -> str:
     return found.group(1)
 
 
+def gated_exe(tmp_path: Path, logs: str, only: str = "") -> Path:
+    """A wrapper for dktlbm that starts it only once a job log matching the glob `logs` (of
+    files in tmp_path) says SIGUSR1, at most 120 s later: a signal sent by hand right after
+    the job's shell has started then always finds the run not yet finished, however fast
+    the machine (the script holds it and passes it on once the run has its handlers). The
+    resubmitted job finds the word already there and starts at once. With `only`, the
+    wrapper waits only for the runs whose arguments contain that string."""
+    wrapper = tmp_path / "dktlbm-gated"
+    wrapper.write_text(
+        "#!/bin/sh\n"
+        f'case " $* " in *"{only}"*) ;; *) exec "{EXE}" "$@" ;; esac\n'
+        "i=0\n"
+        f"until cat {tmp_path}/{logs} 2>/dev/null | grep -q SIGUSR1 || [ $i -ge 600 ]; do\n"
+        "  sleep 0.2; i=$((i + 1))\n"
+        "done\n"
+        f'exec "{EXE}" "$@"\n'
+    )
+    wrapper.chmod(0o755)
+    return wrapper
+
+
 def test_run_one_chain_cut_by_a_signal_equals_a_direct_run(tmp_path: Path) -> None:
     """run_one.slurm submitted with sbatch --ntasks=2 --time=5 (the script says 4 tasks, 24 h)
     is sent SIGUSR1 by Slurm (scancel --batch, the same delivery as --signal=B:USR1 before the
-    limit) as soon as its shell runs, likely before dktlbm has its handlers: the run writes a
-    checkpoint, the job submits its follow-up with the same 2 tasks and 5 min (not the
-    script's 4, which this 2-CPU node could never start), and the chain finishes with an
-    output bitwise equal to one direct run. The job messages land in the output directory,
-    not in the submit directory, and every job id of the chain is in OUTDIR/jobs."""
+    limit) as soon as its shell runs, before dktlbm has its handlers (a wrapper starts it only
+    once the job log has the signal, see gated_exe): the run writes a checkpoint, the job
+    submits its follow-up with the same 2 tasks and 5 min (not the script's 4, which this
+    2-CPU node could never start), and the chain finishes with an output bitwise equal to
+    one direct run. The job messages land in the output directory, not in the submit
+    directory, and every job id of the chain is in OUTDIR/jobs."""
     name = "dkt-real-one"
     out = tmp_path / "chain"
     submit_dir = tmp_path / "submit"
@@ -125,7 +147,8 @@ def test_run_one_chain_cut_by_a_signal_equals_a_direct_run(tmp_path: Path) -> No
     env = job_env(
         SCENE=str(INPUT / "case0.nml"),
         OUTDIR=str(out),
-        DKTLBM=str(EXE),
+        DKTLBM=str(gated_exe(tmp_path, "chain/slurm-*.out")),
+        DKT_SRUN_MPI="pmix",
         EXTRA=" ".join(f"--set {s}" for s in LONG_SETS),
         MAX_RESUBMITS="3",
         SBATCH_SIGNAL="B:USR1@10",
@@ -263,13 +286,22 @@ def collect(out: Path) -> dict[str, str]:
 
 def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
     """sweep_array.slurm over a 2-run plan with --ntasks=1 on the sbatch line: task 1 is sent
-    SIGUSR1 as soon as it runs and is resubmitted as that index only, with 1 task; both runs
+    SIGUSR1 as soon as its shell runs, before its dktlbm starts (gated_exe holds that run
+    only), and is resubmitted as that index only, with 1 task; both runs
     end finished, `collect` shows both with a pattern, and the interrupted run's file is
     bitwise that of its run finished in one go by task 0's twin (same settings, same ranks)."""
     name = "dkt-real-array"
     out = tmp_path / "sweep"
     rows = plan(out, "2,2.0001")
-    env = job_env(RUNS=str(out / "runs.csv"), MAX_RESUBMITS="3", SBATCH_SIGNAL="B:USR1@10")
+    held = out / rows[1]["id"]
+    gated = gated_exe(tmp_path, f"sweep/{held.name}/run.log", f"output.dir={held} ")
+    env = job_env(
+        RUNS=str(out / "runs.csv"),
+        DKTLBM=str(gated),
+        DKT_SRUN_MPI="pmix",
+        MAX_RESUBMITS="3",
+        SBATCH_SIGNAL="B:USR1@10",
+    )
     array = sbatch(
         [
             "--array=0-1",
