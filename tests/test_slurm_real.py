@@ -110,9 +110,9 @@ def job_field(job: str, field: str) -> str:
     return found.group(1)
 
 
-def gated_exe(tmp_path: Path, logs: str, only: str = "") -> Path:
+def gated_exe(tmp_path: Path, logs: str, only: str = "", most: int = 120) -> Path:
     """A wrapper for dktlbm that starts it only once a job log matching the glob `logs` (of
-    files in tmp_path) says SIGUSR1, at most 120 s later: a signal sent by hand right after
+    files in tmp_path) says SIGUSR1, at most `most` s later: a signal sent right after
     the job's shell has started then always finds the run not yet finished, however fast
     the machine (the script holds it and passes it on once the run has its handlers). The
     resubmitted job finds the word already there and starts at once. With `only`, the
@@ -122,7 +122,7 @@ def gated_exe(tmp_path: Path, logs: str, only: str = "") -> Path:
         "#!/bin/sh\n"
         f'case " $* " in *"{only}"*) ;; *) exec "{EXE}" "$@" ;; esac\n'
         "i=0\n"
-        f"until cat {tmp_path}/{logs} 2>/dev/null | grep -q SIGUSR1 || [ $i -ge 600 ]; do\n"
+        f"until cat {tmp_path}/{logs} 2>/dev/null | grep -q SIGUSR1 || [ $i -ge {5 * most} ]; do\n"
         "  sleep 0.2; i=$((i + 1))\n"
         "done\n"
         f'exec "{EXE}" "$@"\n'
@@ -188,21 +188,16 @@ def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
     """The signal of Slurm's own time limit, not one sent by hand: run_one.slurm with
     --ntasks=1 --time=1 and SBATCH_SIGNAL=B:USR1@60 is due its SIGUSR1 from the start, and
     Slurm's timer, checked every 30 s, sends it within half a minute. So that the signal finds
-    the first job still running on any machine, its dktlbm starts 40 s late (a wrapper sleeps
-    before exec; srun's plugin is named, since the wrapper is no Open MPI binary): the script
-    holds the signal, passes it on once the run has its handlers, the run checkpoints and the
-    job resubmits it. Each follow-up job gets a 10 min limit here (scontrol) so that the chain
-    ends (it may be cut again if the timer comes first). The chain's output is bitwise that of
-    a direct one-rank run, made at the same time on the other core."""
+    the first job still running on any machine, its dktlbm starts only once the job log
+    records the signal, at most 45 s late (gated_exe; srun's plugin is named, since the wrapper
+    is no Open MPI binary): the script holds the signal, passes it on once the run has its
+    handlers, the run checkpoints and the job resubmits it. Each follow-up job gets a 10 min
+    limit here (scontrol) so that the chain ends (it may be cut again if the timer comes
+    first). The chain's output is bitwise that of a direct one-rank run, made at the same time
+    on the other core."""
     name = "dkt-real-limit"
     sets = ["lbm.cells_per_diameter=16", "run.steps=12000", "output.series_interval=0.01",
             "output.field_interval=2"]  # fmt: skip
-    slept = tmp_path / "slept"
-    late = tmp_path / "dktlbm-late"
-    late.write_text(
-        f'#!/bin/sh\n[ -e "{slept}" ] || {{ touch "{slept}"; sleep 40; }}\nexec "{EXE}" "$@"\n'
-    )
-    late.chmod(0o755)
     direct = tmp_path / "direct"
     args = [str(EXE), str(INPUT / "case0.nml"), *[a for s in sets for a in ("--set", s)]]
     with (tmp_path / "direct.log").open("w") as log:
@@ -214,7 +209,7 @@ def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
         env = job_env(
             SCENE=str(INPUT / "case0.nml"),
             OUTDIR=str(out),
-            DKTLBM=str(late),
+            DKTLBM=str(gated_exe(tmp_path, "chain/slurm-*.out", most=45)),
             DKT_SRUN_MPI="pmix",
             EXTRA=" ".join(f"--set {s}" for s in sets),
             MAX_RESUBMITS="6",
