@@ -110,9 +110,9 @@ def job_field(job: str, field: str) -> str:
     return found.group(1)
 
 
-def gated_exe(tmp_path: Path, logs: str, only: str = "", most: int = 120) -> Path:
-    """A wrapper for dktlbm that starts it only once a job log matching the glob `logs` (of
-    files in tmp_path) says SIGUSR1, at most `most` s later: a signal sent right after
+def gated_exe(tmp_path: Path, logs: Path, only: str = "", most: int = 120) -> Path:
+    """A wrapper for dktlbm (written into tmp_path) that starts it only once a job log matching
+    the glob `logs` says SIGUSR1, at most `most` s later: a signal sent right after
     the job's shell has started then always finds the run not yet finished, however fast
     the machine (the script holds it and passes it on once the run has its handlers). The
     resubmitted job finds the word already there and starts at once. With `only`, the
@@ -122,7 +122,7 @@ def gated_exe(tmp_path: Path, logs: str, only: str = "", most: int = 120) -> Pat
         "#!/bin/sh\n"
         f'case " $* " in *"{only}"*) ;; *) exec "{EXE}" "$@" ;; esac\n'
         "i=0\n"
-        f"until cat {tmp_path}/{logs} 2>/dev/null | grep -q SIGUSR1 || [ $i -ge {5 * most} ]; do\n"
+        f"until cat {logs} 2>/dev/null | grep -q SIGUSR1 || [ $i -ge {5 * most} ]; do\n"
         "  sleep 0.2; i=$((i + 1))\n"
         "done\n"
         f'exec "{EXE}" "$@"\n'
@@ -147,7 +147,7 @@ def test_run_one_chain_cut_by_a_signal_equals_a_direct_run(tmp_path: Path) -> No
     env = job_env(
         SCENE=str(INPUT / "case0.nml"),
         OUTDIR=str(out),
-        DKTLBM=str(gated_exe(tmp_path, "chain/slurm-*.out")),
+        DKTLBM=str(gated_exe(tmp_path, out / "slurm-*.out")),
         DKT_SRUN_MPI="pmix",
         EXTRA=" ".join(f"--set {s}" for s in LONG_SETS),
         MAX_RESUBMITS="3",
@@ -209,7 +209,7 @@ def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
         env = job_env(
             SCENE=str(INPUT / "case0.nml"),
             OUTDIR=str(out),
-            DKTLBM=str(gated_exe(tmp_path, "chain/slurm-*.out", most=45)),
+            DKTLBM=str(gated_exe(tmp_path, out / "slurm-*.out", most=45)),
             DKT_SRUN_MPI="pmix",
             EXTRA=" ".join(f"--set {s}" for s in sets),
             MAX_RESUBMITS="6",
@@ -282,14 +282,14 @@ def collect(out: Path) -> dict[str, str]:
 def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
     """sweep_array.slurm over a 2-run plan with --ntasks=1 on the sbatch line: task 1 is sent
     SIGUSR1 as soon as its shell runs, before its dktlbm starts (gated_exe holds that run
-    only), and is resubmitted as that index only, with 1 task; both runs
-    end finished, `collect` shows both with a pattern, and the interrupted run's file is
-    bitwise that of its run finished in one go by task 0's twin (same settings, same ranks)."""
+    only), and is resubmitted as that index only, with 1 task; both runs end finished,
+    `collect` shows both with a pattern, and the interrupted run's file is bitwise that of
+    its run finished in one go by task 0's twin (same settings, same ranks)."""
     name = "dkt-real-array"
     out = tmp_path / "sweep"
     rows = plan(out, "2,2.0001")
     held = out / rows[1]["id"]
-    gated = gated_exe(tmp_path, f"sweep/{held.name}/run.log", f"output.dir={held} ")
+    gated = gated_exe(tmp_path, held / "run.log", f"output.dir={held} ")
     env = job_env(
         RUNS=str(out / "runs.csv"),
         DKTLBM=str(gated),
