@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The validation figures of the README, from two runs and the digitised reference curves.
+"""The validation figures of docs/accuracy.md, from two runs and the digitised reference curves.
 
     python3 tools/plot_validation.py UHLMANN.h5 CASE0_BOX.h5 [-o DIR]
 
