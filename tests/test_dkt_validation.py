@@ -1,14 +1,13 @@
 """The paper's validation scene case0_box (docs/model.md §7-8) at the paper's resolution (25
 spacings per diameter, 250 x 1000 cells): the drafting gap, the start of kissing and the tumbling.
 
-Published: a nearly constant surface gap of about 0.2 cm until t = 0.7 s, kissing at about
-1.4 s, tumbling completed at about 2.1 s (the paper); an independent HLBM code: gap below one
-cell from 1.21 to 1.79 s, passing at 1.87 s. docs/model.md §8 warns that the times depend on
-resolution and on how the symmetry is broken; the validation table of docs/accuracy.md lists the measured times
-next to these. This test holds what the scene must reproduce: the drafting gap, the start of
-kissing within 0.1 s of the HLBM time, and one kissing episode that ends in tumbling (the
-trailing disk passes the leading one) within the run.
-"""
+Published: a nearly constant surface gap of about 0.2 cm until t = 0.7 s, kissing at about 1.4 s,
+tumbling completed at about 2.1 s (the paper); an independent HLBM code: gap below one cell from
+1.21 to 1.79 s, passing at 1.87 s. docs/model.md §8 warns that the times depend on resolution and on
+how the symmetry is broken; the validation table of docs/accuracy.md lists the measured times next
+to these. This test holds what the scene must reproduce: the drafting gap, the start of kissing
+within 0.1 s of the HLBM time, and one kissing episode that ends in tumbling (the trailing disk
+passes the leading one) within the run."""
 
 from __future__ import annotations
 
