@@ -25,8 +25,8 @@ from pathlib import Path
 import bisect_fake as fake
 import pytest
 
-import sweep
 from dkt_run import EXE, ROOT, mpi_env
+from dktlbm import sweep
 
 SWEEP = ROOT / "postproc" / "sweep.py"
 FAKE = Path(__file__).resolve().parent / "bisect_fake.py"
@@ -242,7 +242,7 @@ def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
-    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
     out = tmp_path / "b"
     command = fake_bisect(base, out)
     proc = sweep_cli(*command, env=env)
@@ -474,7 +474,7 @@ def test_kiss_mode_settles_a_kiss_at_once_and_never_as_before(
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
-    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
     command = ["bisect", base, "--key", "gamma", "--lo", "1", "--hi", "2", "--tol", "0.01",
                "--exe", FAKE, "--out", out, "--jobs", "2", "--max-t-end", "32",
                "--max-above", "60", "--kiss"]  # fmt: skip

@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 import synthetic as syn
 
-import sweep
 from dkt_run import EXE, ROOT, mpi_env
+from dktlbm import sweep
 
 SWEEP = ROOT / "postproc" / "sweep.py"
 BASE_TEXT = """! a pair scene for the plan tests (never run)

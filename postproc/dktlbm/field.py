@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """One flow field of a run at one time: the stored snapshot nearest to --time, drawn in
 physical coordinates (x from 0 to W, y from the window offset up, cm, equal aspect) with the
 particles as circles at their positions at that time (the nearest /particles sample). Nodes
@@ -12,8 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dktread import (
-    DEFAULT_T_REF,
+from .read import (
     FIELD_NAMES,
     RunFileError,
     Snapshot,
@@ -22,6 +20,7 @@ from dktread import (
     open_run,
     output_path,
     read_field,
+    run_t_ref,
     save_figure,
 )
 
@@ -37,10 +36,10 @@ UNITS = {
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="field.py",
+        prog="dkt-field",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="example: python3 postproc/field.py runs/case1/case1.h5 --field vorticity "
+        epilog="example: dkt-field runs/case1/case1.h5 --field vorticity "
         "--time 1.4 --ylim 10 14",
     )
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
@@ -66,7 +65,7 @@ def particle_circles(path: Path, time: float) -> tuple[list[tuple[float, float, 
         run = open_run(path)
     except RunFileError as exc:
         if "no particles" in exc.what:
-            return [], DEFAULT_T_REF
+            return [], run_t_ref(path)
         raise
     i = int(np.argmin(np.abs(run.t - time)))
     circles = [(float(run.series["x"][i, k]), float(run.series["y"][i, k]),

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Per-particle trajectories against t*: x/W, y/H, u/sqrt(Hg), v/sqrt(Hg) and
 Omega/(2 pi/t_r) in stacked panels (docs/model.md §6 normalisation; H = 18 cm, t_r = sqrt(H/g))."""
 
@@ -8,15 +7,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from dktread import Run, add_output_options, guarded, open_run, output_path, save_figure
+from .read import Run, add_output_options, guarded, open_run, output_path, save_figure
 
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="trajectories.py",
+        prog="dkt-trajectories",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="example: python3 postproc/trajectories.py runs/case1/case1.h5 --pdf",
+        epilog="example: dkt-trajectories runs/case1/case1.h5 --pdf",
     )
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     add_output_options(p, "trajectories")

@@ -1,19 +1,18 @@
-#!/usr/bin/env python3
 """Parameter sweeps over the diameter ratio gamma = D_1/D_2 and the initial distance D_h/D_1
 of a pair scene, and the regime map of their DKT patterns.
 
-    sweep.py plan BASE.nml [--gamma LIST] [--dh LIST] [--set group.key=value ...] --out DIR
-    sweep.py run --out DIR [--jobs N] [--ranks R] [--force]      # here, N runs at a time
-    sweep.py slurm --out DIR [--ntasks R] [--time HH:MM:SS] [--partition P]  # a job array
-    sweep.py collect --out DIR                                   # regime.csv, regime.png
-    sweep.py bisect BASE.nml --key gamma|dh --lo A --hi B --tol T --out DIR [--jobs N]
+    dkt-sweep plan BASE.nml [--gamma LIST] [--dh LIST] [--set group.key=value ...] --out DIR
+    dkt-sweep run --out DIR [--jobs N] [--ranks R] [--force]      # here, N runs at a time
+    dkt-sweep slurm --out DIR [--ntasks R] [--time HH:MM:SS] [--partition P]  # a job array
+    dkt-sweep collect --out DIR                                   # regime.csv, regime.png
+    dkt-sweep bisect BASE.nml --key gamma|dh --lo A --hi B --tol T --out DIR [--jobs N]
                                                                  # where the pattern changes
 
 `plan` writes DIR/runs.csv (id, gamma, dh, dir, command): one run per combination of the
 values, `dktlbm BASE --set pair.gamma=G --set pair.dh=H [--set ...] --set
 output.dir=DIR/<id>`. LIST is comma-separated values or inclusive ranges start:stop:step,
 e.g. `--gamma 1:3:0.5` or `--dh 1,2,4:10:2`. `run` and `slurm` run that plan; `collect`
-reads each run's pattern (pattern.py) into DIR/regime.csv and draws DIR/regime.png.
+reads each run's pattern (dkt-pattern) into DIR/regime.csv and draws DIR/regime.png.
 
 `bisect` narrows [A, B] to a bracket of width <= T around the value of pair.gamma or pair.dh
 where the pattern changes, N runs per step; its runs are rows of DIR/runs.csv like a plan's.
@@ -35,7 +34,6 @@ import csv
 import math
 import os
 import shlex
-import shutil
 import subprocess
 import sys
 import threading
@@ -43,7 +41,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from dktread import (
+from . import launch as mpi
+from .read import (
     RunFileError,
     fortran_float,
     guarded,
@@ -52,19 +51,18 @@ from dktread import (
     pair_of,
     parse_namelist,
     pattern_name,
+    program_settings,
     run_status,
     run_until,
     stop_reason,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
 RUNS_CSV = "runs.csv"
 REGIME_CSV = "regime.csv"
 COLUMNS = ("id", "gamma", "dh", "dir", "command")
 REGIME_COLUMNS = ("gamma", "dh", "pattern", "episodes", "first_kiss_t", "dir", "status",
                   "t_end", "settled", "left_window")
 BISECT_CSV = "bisect.csv"
-WINDOW_ABOVE = 15.0  # D_1, dktlbm's default window.above
 BISECT_STATE = "bisect.json"
 BISECT_COLUMNS = ("row", "value", "pattern", "episodes", "first_kiss_t", "t_end", "end_t",
                   "status", "settled", "wall_s", "dir", "above")
@@ -149,12 +147,10 @@ class PlannedRun:
 
 
 def default_exe() -> str:
-    """build/dktlbm of this source tree, else dktlbm on PATH, else the build path anyway."""
-    built = ROOT / "build" / "dktlbm"
-    if built.exists():
-        return str(built)
-    found = shutil.which("dktlbm")
-    return found if found else str(built)
+    """The executable the plan's commands start (dktlbm.launch.find_exe: $DKTLBM_EXE, dktlbm
+    on PATH, this source tree's build/dktlbm); `dktlbm` when there is none yet."""
+    found = mpi.find_exe()
+    return str(found) if found is not None else "dktlbm"
 
 
 def _fmt(value: float) -> str:
@@ -238,7 +234,7 @@ def read_plan(out: Path) -> list[PlannedRun]:
     be moved or copied back from a cluster)."""
     path = out / RUNS_CSV
     if not path.is_file():
-        raise SweepError(f"{path}: no such file; write it first with `sweep.py plan`")
+        raise SweepError(f"{path}: no such file; write it first with `dkt-sweep plan`")
     plan = []
     with path.open(newline="") as f:
         reader = csv.DictReader(f)
@@ -258,35 +254,10 @@ def read_plan(out: Path) -> list[PlannedRun]:
 # ---------------------------------------------------------------- run here
 
 
-def launcher(ranks: int, jobs: int = 1) -> tuple[list[str], dict[str, str]]:
-    """The MPI launch prefix (MPIEXEC, default mpiexec) and environment: Open MPI as root
-    needs the two OMPI_ALLOW_RUN_AS_ROOT variables, and --oversubscribe for more ranks than
-    cores. With several runs at a time, Open MPI's own binding is switched off (unless the
-    environment sets a policy): each mpiexec binds its ranks from the first core on, without
-    knowing of the others, so two one-rank runs would share core 0 and leave core 1 idle."""
-    mpiexec = os.environ.get("MPIEXEC") or "mpiexec"
-    env = dict(os.environ)
-    prefix = [mpiexec, "-n", str(ranks)]
-    try:
-        version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True,
-                                 timeout=30)
-        text = version.stdout + version.stderr
-    except (OSError, subprocess.TimeoutExpired):
-        text = ""
-    if "Open MPI" in text or "OpenRTE" in text or "open-mpi" in text:
-        prefix.append("--oversubscribe")
-    if jobs > 1:
-        env.setdefault("OMPI_MCA_hwloc_base_binding_policy", "none")
-    if hasattr(os, "geteuid") and os.geteuid() == 0:
-        env["OMPI_ALLOW_RUN_AS_ROOT"] = "1"
-        env["OMPI_ALLOW_RUN_AS_ROOT_CONFIRM"] = "1"
-    return prefix, env
-
-
 def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
     """Run the plan, `jobs` runs at a time on `ranks` ranks each; the output of each goes to
     <dir>/run.log. Finished runs are skipped unless `force`. Returns the number of failures."""
-    prefix, env = launcher(ranks, jobs)
+    prefix, env = mpi.mpi_prefix(ranks), mpi.mpi_env(jobs)
     lock = threading.Lock()
 
     def say(text: str) -> None:
@@ -330,7 +301,6 @@ def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
 
 # ---------------------------------------------------------------- Slurm
 
-JOB_LIB = ROOT / "input" / "slurm" / "dkt_job.sh"
 SLURM_TEMPLATE = """#!/bin/bash
 # Slurm job array of a sweep: task k runs row k of runs.csv (after the header) in <dir>/<id>,
 # the directory that holds this script and runs.csv (it may be moved). Submit it with
@@ -340,7 +310,7 @@ SLURM_TEMPLATE = """#!/bin/bash
 # and submits itself again when it stopped with a checkpoint (at most MAX_RESUBMITS times).
 # Stop the whole sweep: scancel --name={job_name}. Exit status per task: 0 = finished, or
 # stopped and resubmitted; 1 = stopped unfinished and not resubmitted; 2 = a setting is wrong;
-# else dktlbm failed. `sweep.py collect` shows an unfinished run with a checkpoint as stopped.
+# else dktlbm failed. `dkt-sweep collect` shows an unfinished run with a checkpoint as stopped.
 #SBATCH --job-name={job_name}
 #SBATCH --array=0-{last}{throttle}
 #SBATCH --ntasks={ntasks}
@@ -396,7 +366,7 @@ def slurm_script(plan: list[PlannedRun], out: Path, ntasks: int, time_limit: str
         extra=extra,
         setup="".join(f"{line}\n" for line in setup),
         max_resubmits=max_resubmits,
-        library=JOB_LIB.read_text(),
+        library=(mpi.slurm_dir() / "dkt_job.sh").read_text(),
         written=shlex.quote(str(out)),
     )
 
@@ -491,7 +461,7 @@ STOPPED_CLEANLY = ("signal", "wall_limit")  # stop reasons after which a checkpo
 def verdict(h5: Path, until: float | None = None) -> Verdict:
     """The Verdict of the run file `h5` (see Verdict). With `until` (s), the Verdict the run
     would have had with t_end = `until`, judged on its samples up to there as if it had
-    finished there (dktread.run_until); status 'short' when its samples do not reach that time."""
+    finished there (read.run_until); status 'short' when its samples do not reach that time."""
     status = run_status(h5)
     if status == "missing":
         return Verdict("missing", why="no run file")
@@ -579,8 +549,8 @@ class BisectSettings:
     exe: str
     t_end: float  # s, the runs' first end time
     max_t_end: float  # s
-    above: float = WINDOW_ABOVE  # D_1, the runs' first window.above
-    max_above: float = 4 * WINDOW_ABOVE  # D_1
+    above: float  # D_1, the runs' first window.above
+    max_above: float  # D_1
     kiss: bool = False  # tell 'kisses' (once or repeated) from 'never' only (judge)
 
     def identity(self) -> dict[str, object]:
@@ -1009,14 +979,14 @@ def write_regime(rows: list[dict[str, str]], out: Path, pdf: bool) -> list[Path]
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="sweep.py",
+        prog="dkt-sweep",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n"
-        "  python3 postproc/sweep.py plan input/case1.nml --gamma 1:3:0.5 --dh 2,4,8 "
+        "  dkt-sweep plan input/case1.nml --gamma 1:3:0.5 --dh 2,4,8 "
         "--out sweeps/case1\n"
-        "  python3 postproc/sweep.py run --out sweeps/case1 --jobs 2 --ranks 2\n"
-        "  python3 postproc/sweep.py collect --out sweeps/case1",
+        "  dkt-sweep run --out sweeps/case1 --jobs 2 --ranks 2\n"
+        "  dkt-sweep collect --out sweeps/case1",
     )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -1153,7 +1123,8 @@ def _bisect_command(args: argparse.Namespace) -> int:
     if max_t_end < t_end:
         raise SweepError(f"--max-t-end {max_t_end:g} is below run.t_end = {t_end:g} s")
     above, text = _scene_number(base, args.sets, "window.above")
-    above = WINDOW_ABOVE if not text else above
+    if not text:  # the program's default
+        above = fortran_float(program_settings(None)["window"]["above"][0])
     if not (above is not None and math.isfinite(above) and above >= 1):
         raise SweepError(f"{base}: &window above is not a number >= 1 ({text!r}); set it with "
                          f"--set window.above=D (in D_1)")

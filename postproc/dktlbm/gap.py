@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The separation of the pair against t*: D_x/D_1, D_y/D_1 and the surface gap D_r/D_1 in
 three stacked panels, for one run or several overlaid (as the paper's gap figures)."""
 
@@ -10,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dktread import (
+from .read import (
     Pair,
     add_output_options,
     guarded,
@@ -26,10 +25,10 @@ LABELS = ("auto", "gamma", "dh", "name")
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="gap.py",
+        prog="dkt-gap",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="example: python3 postproc/gap.py runs/case1/case1.h5 runs/case2/case2.h5 "
+        epilog="example: dkt-gap runs/case1/case1.h5 runs/case2/case2.h5 "
         "-o gaps.png --pdf",
     )
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN.h5", help="dktlbm run files")

@@ -6,14 +6,16 @@
 
 Units are the file's: cm, g, s. The pair is particles 1 and 2; D_1 is the larger diameter.
 The scales (t_ref, h_ref, gravity, fluid density and viscosity, D_1, the diameters of the pair)
-and the kissing thresholds are read from the attributes the program stores in /run; the
-defaults and rules below are only a fallback for files written before it stored them. When
+and the kissing thresholds are read from the attributes the program stores in /run. For
+files written before it stored them, the values come from the namelist stored in /run, and
+what that does not give from the dktlbm executable itself (`dktlbm FILE --print-defaults`,
+RunSettings): no default is repeated here. When
 the file has a /diagnostics group its series, thresholds, pattern and episodes are used
 as written; otherwise (older files, scenes without a pair group) they are computed here from
 /particles with the same rules (docs/model.md §6):
 
-    enter   = max(enter_cells * dx, enter_d1 * D_1)      defaults 2 spacings, 0.05 D_1
-    release = max(release_cells * dx, release_d1 * D_1)  defaults 4 spacings, 0.25 D_1
+    enter   = max(enter_cells * dx, enter_d1 * D_1)      (&diagnostics enter_cells = 0:
+    release = max(release_cells * dx, release_d1 * D_1)   as dktlbm --check reports it)
 
 An episode starts at the first sample with D_r <= enter while not in an episode and ends at
 the first later sample with D_r > release (or at the last sample: an open episode). Pattern:
@@ -30,9 +32,12 @@ same: open_run prints a warning that says why it stopped and that its series end
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import re
+import subprocess
 import sys
+import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -41,17 +46,8 @@ from typing import Any
 
 import numpy as np
 
-# Fallbacks for run files written before the program stored its scales and thresholds in /run.
-# docs/model.md §6: t_ref = sqrt(H/g) with H = 18 cm, g = 980 cm/s^2
-DEFAULT_T_REF = 0.135526
-DEFAULT_H_REF = 18.0
-DEFAULT_GRAVITY = 980.0
-# kissing-episode thresholds (docs/model.md §6), each the larger of a number of lattice spacings and
-# a fraction of D_1
-ENTER_CELLS = 2.0
-ENTER_D1 = 0.05
-RELEASE_CELLS = 4.0
-RELEASE_D1 = 0.25
+from .launch import LaunchError, exe, mpi_env
+
 PATTERNS = ("repeated", "once", "never")
 SERIES = ("x", "y", "u", "v", "omega", "fx", "fy", "torque")
 FIELD_NAMES = ("vorticity", "pressure", "speed", "ux", "uy", "rho")
@@ -160,6 +156,114 @@ def nml_floats(nml: dict[str, dict[str, list[str]]], group: str, key: str) -> li
     return out
 
 
+# ---------------------------------------------------------------- the program's settings
+
+LIMIT_KEYS = ("enter_cells", "enter_d1", "release_cells", "release_d1")
+
+
+def _dktlbm(args: list[str], scene: str | None, what: str) -> str:
+    """stdout of `dktlbm [SCENE] args`, SCENE being namelist text written to a scratch file;
+    LaunchError with the program's message when it cannot run or refuses."""
+    program = exe()
+    with tempfile.TemporaryDirectory(prefix="dktlbm-") as tmp:
+        command = [program, *args]
+        if scene is not None:
+            path = Path(tmp) / "scene.nml"
+            path.write_text(scene)
+            command.insert(1, str(path))
+        try:
+            proc = subprocess.run(command, capture_output=True, text=True, cwd=tmp,
+                                  env=mpi_env(), timeout=120)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise LaunchError(f"cannot run {program} for {what}: {exc}") from None
+    if proc.returncode != 0:
+        message = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
+        raise LaunchError(f"{program} refused {what} (exit status {proc.returncode}): "
+                          f"{message[-1] if message else 'no message'}")
+    return proc.stdout
+
+
+@functools.cache
+def program_settings(text: str | None = None) -> dict[str, dict[str, list[str]]]:
+    """Every input key as dktlbm makes it of the namelist `text` (None: its defaults), from
+    `dktlbm FILE --print-defaults`: {group: {key: [values as text]}}. When the program
+    refuses the text (a scene it does not accept as a whole), its defaults with the text's
+    own values over them. LaunchError when the executable (dktlbm.launch.exe) cannot say."""
+    if text is not None:
+        try:
+            return parse_namelist(_dktlbm(["--print-defaults"], text, "the stored namelist"))
+        except LaunchError:
+            merged = {g: {k: list(v) for k, v in keys.items()}
+                      for g, keys in program_settings(None).items()}
+            for group, keys in parse_namelist(text).items():
+                for key, values in keys.items():
+                    into = merged.setdefault(group, {}).setdefault(key, [])
+                    for i, v in enumerate(values):
+                        if v == "":
+                            continue
+                        into.extend([""] * (i + 1 - len(into)))
+                        into[i] = v
+            return merged
+    return parse_namelist(_dktlbm(["--print-defaults"], None, "--print-defaults"))
+
+
+_KISS_LINE = re.compile(r"kissing episode starts at D_r <=\s*([0-9.]+) spacings and ends at "
+                        r"D_r >\s*([0-9.]+) spacings")
+
+
+@functools.cache
+def kiss_cells(enter_cells: float, release_cells: float,
+               collision_range: float) -> tuple[float, float]:
+    """The kissing thresholds in lattice spacings that dktlbm uses for &diagnostics
+    enter_cells, release_cells and &collision range (enter_cells = 0 stands for a rule of the
+    program's), as `dktlbm --check` reports them for a probe pair with enter_d1 = release_d1
+    = 0. LaunchError when the executable cannot say."""
+    probe = "&particles\n  count = 2, x = 0.5, 1.5, y = 2.5, 2.5\n/\n"
+    sets = {"collision.range": collision_range, "diagnostics.enter_cells": enter_cells,
+            "diagnostics.release_cells": release_cells, "diagnostics.enter_d1": 0.0,
+            "diagnostics.release_d1": 0.0}
+    with tempfile.TemporaryDirectory(prefix="dktlbm-") as out:
+        args = ["--check", "--set", f"output.dir={out}/run"]
+        for key, value in sets.items():
+            args += ["--set", f"{key}={value!r}"]
+        report = _dktlbm(args, probe, "the kissing-threshold probe")
+    found = _KISS_LINE.search(report)
+    if found is None:
+        raise LaunchError("dktlbm --check printed no kissing thresholds for a probe pair")
+    return float(found.group(1)), float(found.group(2))
+
+
+class RunSettings:
+    """The input of a run: the namelist text stored in /run, and for the keys it does not give
+    what dktlbm makes of it (program_settings, asked once and only when needed)."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.given = parse_namelist(text)
+
+    def values(self, group: str, key: str) -> list[str]:
+        """The values of `&group key` as text, element by element: the namelist's, else the
+        program's."""
+        given = self.given.get(group, {}).get(key, [])
+        if given and all(v != "" for v in given):
+            return given
+        program = program_settings(self.text).get(group, {}).get(key, [])
+        merged = list(program)
+        for i, v in enumerate(given):
+            if v != "":
+                merged.extend([""] * (i + 1 - len(merged)))
+                merged[i] = v
+        if not merged:
+            raise LaunchError(f"dktlbm knows no input key {group}.{key}")
+        return merged
+
+    def number(self, group: str, key: str, index: int = 0) -> float:
+        """Element `index` of `&group key` as a number (the last element for an index past
+        the end: a default array shorter than the particle count)."""
+        values = self.values(group, key)
+        return fortran_float(values[min(index, len(values) - 1)])
+
+
 # ---------------------------------------------------------------- the run file
 
 
@@ -174,6 +278,17 @@ def _text(value: Any) -> str:
 
 def _num(value: Any) -> float:
     return float(np.asarray(value, dtype=float).ravel()[0])
+
+
+def numeric_attrs(attrs: Any) -> dict[str, float]:
+    """The numeric attributes of one HDF5 object as floats, integers (newer files) and floats
+    (older ones) alike; the `*_units` companions and the strings are left out."""
+    out = {}
+    for key, value in attrs.items():
+        a = np.asarray(value)
+        if not key.endswith("_units") and a.dtype.kind in "fiu" and a.size == 1:
+            out[key] = _num(a)
+    return out
 
 
 @contextmanager
@@ -205,8 +320,8 @@ def open_h5(path: str | Path) -> Iterator[Any]:
 @dataclass
 class Run:
     """One run file: /particles series (n samples, count particles), scales and metadata.
-    Scales come from /diagnostics when present, else from the namelist in /run, else the
-    docs/model.md §6 defaults."""
+    Scales come from /run attributes, else /diagnostics, else the run's settings (the namelist
+    in /run, and what dktlbm makes of it)."""
 
     path: Path
     name: str
@@ -229,6 +344,7 @@ class Run:
     has_fields: bool = False
     stop_reason: str = ""  # /run stop_reason; '' in files written before it was stored
     run_attrs: dict[str, float] = field(default_factory=dict)  # numeric /run attributes
+    settings: RunSettings = field(default_factory=lambda: RunSettings(""))  # the input
 
     @property
     def complete(self) -> bool:
@@ -285,28 +401,30 @@ def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
     return d
 
 
-def _diameters(nml: dict[str, dict[str, list[str]]], count: int,
-               diag: dict[str, Any] | None, stored: dict[str, float]) -> np.ndarray:
+def _diameters(settings: RunSettings, count: int, diag: dict[str, Any] | None,
+               stored: dict[str, float]) -> np.ndarray:
+    """The particle diameters, cm: the pair's as stored in /run (diameter_1, diameter_2) or
+    /diagnostics (d1, gamma); the others, and all of them in older files, from the run's
+    settings, asked only when needed."""
     d = np.full(count, math.nan)
-    # &pair gamma > 0 writes particles 1 (D_1) and 2 (D_1/gamma): the namelist in /run may be
-    # the input as given, before that expansion.
-    gamma = nml_float(nml, "pair", "gamma", 0.0)
-    given = nml_floats(nml, "particles", "diameter")
-    default_d = 0.2
-    for k in range(count):
-        d[k] = given[k] if k < len(given) and math.isfinite(given[k]) else default_d
-    if gamma > 0 and count >= 2:
-        d1 = nml_float(nml, "pair", "d1", 0.2)
-        d[0], d[1] = d1, d1 / gamma
-    if diag is not None and count >= 2:
+    for k in range(min(count, 2)):
+        if f"diameter_{k + 1}" in stored:
+            d[k] = stored[f"diameter_{k + 1}"]
+    if count == 1 and "d1" in stored:
+        d[0] = stored["d1"]
+    if diag is not None and count >= 2 and np.isnan(d[:2]).any():
         a = diag["attrs"]
         if "d1" in a and "gamma" in a and _num(a["gamma"]) > 0:
             d1 = _num(a["d1"])
             d[0], d[1] = d1, d1 / _num(a["gamma"])
-    # the pair's diameters as the program used them (files since it stores them)
-    for k in range(min(count, 2)):
-        if f"diameter_{k + 1}" in stored:
-            d[k] = stored[f"diameter_{k + 1}"]
+    if np.isnan(d).any():
+        # &pair gamma > 0 writes particles 1 (D_1) and 2 (D_1/gamma): the namelist in /run may
+        # be the input as given, before that expansion.
+        for k in np.flatnonzero(np.isnan(d)):
+            d[k] = settings.number("particles", "diameter", int(k))
+        if count >= 2 and settings.number("pair", "gamma") > 0:
+            d1 = settings.number("pair", "d1")
+            d[0], d[1] = d1, d1 / settings.number("pair", "gamma")
     return d
 
 
@@ -332,12 +450,29 @@ def open_run(path: str | Path, need_particles: int = 1, warn: bool = True) -> Ru
             run = _read_run(Path(path), h5, need_particles)
         except RunFileError:
             raise
+        except LaunchError as exc:
+            raise RunFileError(path, f"the file lacks scales that files since dktlbm 0.1 store "
+                               f"in /run, and dktlbm cannot supply them: {exc}") from None
         except (KeyError, ValueError, TypeError, IndexError, OSError) as exc:
             raise RunFileError(path, f"not a readable dktlbm run file ({exc})") from None
     note = run.stop_note()
     if note and warn:
         print(f"warning: {note}", file=sys.stderr)
     return run
+
+
+def run_t_ref(path: str | Path) -> float:
+    """t_ref of a run file, s (t* = t/t_ref): the /run attribute, else the run's settings; also
+    for a run without particles."""
+    with open_h5(path) as h5:
+        attrs = h5["run"].attrs if "run" in h5 else {}
+        if "t_ref" in attrs:
+            return _num(attrs["t_ref"])
+        text = _text(attrs["namelist"]) if "namelist" in attrs else ""
+    try:
+        return RunSettings(text).number("run", "t_ref")
+    except LaunchError as exc:
+        raise RunFileError(path, f"no /run t_ref, and dktlbm cannot supply it: {exc}") from None
 
 
 def stop_reason(h5: Any) -> str:
@@ -372,48 +507,50 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
     offset = np.asarray(p["window_offset"][()], dtype=float) if "window_offset" in p else None
 
     run_attrs = h5["run"].attrs if "run" in h5 else {}
-    nml = parse_namelist(_text(run_attrs["namelist"])) if "namelist" in run_attrs else {}
-    numbers = {k: _num(v) for k, v in run_attrs.items()
-               if np.asarray(v).dtype.kind in "fiu" and np.asarray(v).size == 1}
+    settings = RunSettings(_text(run_attrs["namelist"]) if "namelist" in run_attrs else "")
+    numbers = numeric_attrs(run_attrs)
     dx = _num(run_attrs["dx"]) if "dx" in run_attrs else math.nan
     dt = _num(run_attrs["dt"]) if "dt" in run_attrs else math.nan
     steps = int(_num(run_attrs["steps"])) if "steps" in run_attrs else 0
-    nx = _num(run_attrs["nx"]) if "nx" in run_attrs else math.nan
 
     diag = _read_diagnostics(h5)
     a = diag["attrs"] if diag is not None else {}
 
-    def scale(attr: str, group: str, key: str, default: float) -> float:
-        # as stored by the program; the namelist and the defaults only for older files
+    def scale(attr: str, group: str, key: str) -> float:
+        # as stored by the program; the run's settings only for older files
         if attr in numbers:
             return numbers[attr]
         if attr in a:
             return _num(a[attr])
-        return nml_float(nml, group, key, default)
+        return settings.number(group, key)
 
-    width = scale("width", "domain", "width", nx * dx if math.isfinite(nx * dx) else 2.0)
+    t_ref = scale("t_ref", "run", "t_ref")
+    gravity = scale("gravity", "particles", "gravity")
+    # h_ref = g t_ref^2, as the program defines and stores it
+    h_ref = numbers.get("h_ref", _num(a["h_ref"]) if "h_ref" in a else gravity * t_ref**2)
     return Run(
         path=path,
         name=path.stem,
-        namelist=nml,
+        namelist=settings.given,
         dx=dx,
         dt=dt,
         steps=steps,
         count=count,
         t=t,
         series={k: v[:, :count] for k, v in series.items()},
-        diameters=_diameters(nml, count, diag, numbers),
+        diameters=_diameters(settings, count, diag, numbers),
         window_offset=offset,
-        width=width,
-        t_ref=scale("t_ref", "run", "t_ref", DEFAULT_T_REF),
-        h_ref=numbers.get("h_ref", _num(a["h_ref"]) if "h_ref" in a else DEFAULT_H_REF),
-        gravity=scale("gravity", "particles", "gravity", DEFAULT_GRAVITY),
-        rho_f=scale("rho_f", "fluid", "density", 1.0),
-        mu=scale("mu", "fluid", "viscosity", 0.01),
+        width=scale("width", "domain", "width"),
+        t_ref=t_ref,
+        h_ref=h_ref,
+        gravity=gravity,
+        rho_f=scale("rho_f", "fluid", "density"),
+        mu=scale("mu", "fluid", "viscosity"),
         diagnostics=diag,
         has_fields="fields" in h5,
         stop_reason=stop_reason(h5),
         run_attrs=numbers,
+        settings=settings,
     )
 
 
@@ -428,7 +565,7 @@ class Thresholds:
     release: float
     dx: float
     d1: float
-    rule: str = "docs/model.md §6 defaults"
+    rule: str = "the run's settings"
 
     @property
     def enter_cells(self) -> float:
@@ -447,10 +584,9 @@ class Thresholds:
         return self.release / self.d1
 
 
-def thresholds(dx: float, d1: float, enter_cells: float = ENTER_CELLS,
-               enter_d1: float = ENTER_D1, release_cells: float = RELEASE_CELLS,
-               release_d1: float = RELEASE_D1,
-               rule: str = "docs/model.md §6 defaults") -> Thresholds:
+def thresholds(dx: float, d1: float, *, enter_cells: float, enter_d1: float,
+               release_cells: float, release_d1: float,
+               rule: str = "the run's settings") -> Thresholds:
     """enter = max(enter_cells dx, enter_d1 D_1), release = max(release_cells dx,
     release_d1 D_1); a spacing that is unknown (NaN) counts as 0."""
     cells = dx if math.isfinite(dx) else 0.0
@@ -597,38 +733,25 @@ def pair_of(run: Run, limits: dict[str, float] | None = None,
     return _pair_from_particles(run, limits)
 
 
-def _default_limits() -> dict[str, float]:
-    return {"enter_cells": ENTER_CELLS, "enter_d1": ENTER_D1,
-            "release_cells": RELEASE_CELLS, "release_d1": RELEASE_D1}
-
-
 def _limits(run: Run, d1: float, limits: dict[str, float] | None,
             attrs: dict[str, Any] | None = None) -> Thresholds:
-    """Thresholds from the run's settings (&diagnostics in its namelist, the spacing counts in
-    /diagnostics) with `limits` (given by the user) taking precedence."""
-    stored = {k: run.run_attrs.get(f"kiss_{k}") for k in _default_limits()}
-    if all(v is not None for v in stored.values()):
-        # as the program used them (stored in /run)
-        base = {k: float(v) for k, v in stored.items() if v is not None}
-        given = {k: v for k, v in (limits or {}).items() if v is not None}
-        rule = "given on the command line" if given else "the run's settings"
-        return thresholds(run.dx, d1, rule=rule, **{**base, **given})
-    # older files: the namelist in /run, and the program's defaults for what it does not set
-    base = {k: nml_float(run.namelist, "diagnostics", k, v) for k, v in _default_limits().items()}
-    if base["enter_cells"] <= 0:
-        # &diagnostics enter_cells = 0 means one spacing beyond the repulsion range (E10)
-        base["enter_cells"] = nml_float(run.namelist, "collision", "range", 1.0) + 1.0
-    for key, attr in (("enter_cells", "kiss_enter_cells"), ("release_cells", "kiss_release_cells")):
-        if attrs and attr in attrs:
-            base[key] = _num(attrs[attr])
+    """Thresholds from the run's settings (as stored in /run or /diagnostics, else its
+    namelist and dktlbm's defaults) with `limits` (given by the user) taking precedence. An
+    enter_cells of 0 (the program's rule on collision.range) is resolved by kiss_cells."""
+    stored = {k: run.run_attrs.get(f"kiss_{k}") for k in LIMIT_KEYS}
+    for key in ("enter_cells", "release_cells"):
+        if stored[key] is None and attrs and f"kiss_{key}" in attrs:
+            stored[key] = _num(attrs[f"kiss_{key}"])
+    base = {k: v if v is not None else run.settings.number("diagnostics", k)
+            for k, v in stored.items()}
     given = {k: v for k, v in (limits or {}).items() if v is not None}
-    if given:
-        rule = "given on the command line"
-    elif base == _default_limits():
-        rule = "docs/model.md §6 defaults"
-    else:
-        rule = "the run's settings"
-    return thresholds(run.dx, d1, rule=rule, **{**base, **given})
+    merged = {**base, **given}
+    if merged["enter_cells"] <= 0:
+        merged["enter_cells"], merged["release_cells"] = kiss_cells(
+            merged["enter_cells"], merged["release_cells"],
+            run.settings.number("collision", "range"))
+    rule = "given on the command line" if given else "the run's settings"
+    return thresholds(run.dx, d1, rule=rule, **merged)
 
 
 def _pair_from_particles(run: Run, limits: dict[str, float] | None) -> Pair:
@@ -837,11 +960,11 @@ def save_figure(fig: Any, png: Path, pdf: bool) -> list[Path]:
 
 
 def guarded(body: Callable[[], int]) -> int:
-    """Run `body`; a RunFileError or an unwritable output becomes `error: ...` on stderr and
-    exit status 2, without a traceback."""
+    """Run `body`; a RunFileError, a missing executable (LaunchError) or an unwritable output
+    becomes `error: ...` on stderr and exit status 2, without a traceback."""
     try:
         return body()
-    except RunFileError as exc:
+    except (RunFileError, LaunchError) as exc:
         print(f"error: {exc}", file=sys.stderr)
     except OSError as exc:
         where = exc.filename if exc.filename else "output"

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The DKT pattern of a run: repeated (two or more kissing episodes), once (one) or never
 (none), with each episode's start and end (s and t*) and its smallest gap, the thresholds
 used, gamma = D_1/D_2 and D_h/D_1.
@@ -20,16 +19,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dktread import Pair, RunFileError, fmt, guarded, open_run, pair_of
+from .read import Pair, RunFileError, fmt, guarded, open_run, pair_of
 
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="pattern.py",
+        prog="dkt-pattern",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  python3 postproc/pattern.py runs/case1/case1.h5\n"
-        "  python3 postproc/pattern.py runs/case1/case1.h5 --json --enter-cells 1",
+        epilog="examples:\n  dkt-pattern runs/case1/case1.h5\n"
+        "  dkt-pattern runs/case1/case1.h5 --json --enter-cells 1",
     )
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")

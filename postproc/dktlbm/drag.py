@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """The drag coefficient of each particle against t*: C_d = F_y / (rho_f U_p^2 D_p / 2)
 (docs/model.md E12), from /diagnostics/cd for the pair when the file has it, else from /particles
 (U_p = |U|). C_d is undefined (not drawn) while a particle is at rest, and very large just
@@ -13,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dktread import (
+from .read import (
     Run,
     add_output_options,
     guarded,
@@ -26,10 +25,10 @@ from dktread import (
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="drag.py",
+        prog="dkt-drag",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="example: python3 postproc/drag.py runs/case1/case1.h5 --ylim 0 20",
+        epilog="example: dkt-drag runs/case1/case1.h5 --ylim 0 20",
     )
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     add_output_options(p, "drag")
