@@ -12,3 +12,8 @@ dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS post
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
+# The install as a new user meets it: `cmake --install` into a scratch prefix, the package
+# pip-installed into a scratch venv, and from an empty directory with only their bin
+# directories on PATH an example scene on 2 ranks, dkt-gap and dkt-pattern.
+dkt_add_pytest(NAME install FILE tests/test_install.py LABELS postproc PROCESSORS 2 TIMEOUT 600
+  ENV "DKT_BUILD_DIR=${CMAKE_BINARY_DIR}" "DKT_CMAKE=${CMAKE_COMMAND}")

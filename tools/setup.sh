@@ -126,8 +126,9 @@ if [ ${#missing_py[@]} -eq 0 ] && command -v python3 >/dev/null 2>&1 && ! packag
   site_writable=$(python3 -c 'import os, sysconfig
 print(int(os.access(sysconfig.get_paths()["purelib"], os.W_OK)))' 2>/dev/null || echo 0)
   pip=(python3 -m pip install --disable-pip-version-check --no-input -q)
-  # offline when this Python's setuptools builds editable installs itself (64 or newer)
-  if python3 -c 'import setuptools, sys
+  # offline when this Python can build an editable wheel itself (setuptools 64 or newer and
+  # wheel); else pip fetches them for the build
+  if python3 -c 'import setuptools, sys, wheel
 sys.exit(int(setuptools.__version__.split(".")[0]) < 64)' >/dev/null 2>&1; then
     pip+=(--no-build-isolation)
   fi
