@@ -254,15 +254,59 @@ def read_plan(out: Path) -> list[PlannedRun]:
 # ---------------------------------------------------------------- run here
 
 
-def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
+def clock_text(seconds: float) -> str:
+    """Seconds as H:MM:SS (whole seconds, rounded up)."""
+    whole = math.ceil(max(seconds, 0.0))
+    return f"{whole // 3600}:{whole // 60 % 60:02d}:{whole % 60:02d}"
+
+
+class Progress:
+    """The progress line after each finished run of `total`, `jobs` at a time:
+
+        progress: [step S: ]K of N runs finished, elapsed H:MM:SS, ETA H:MM:SS
+
+    elapsed since `start` (clock() by default); ETA = the mean time of the runs that ran (a
+    skipped run took none) times the runs left, over the runs that go on side by side
+    (min(jobs, runs left)); 'unknown' before a run has ended."""
+
+    def __init__(self, total: int, jobs: int, step: int | None = None,
+                 start: float | None = None, clock=time.monotonic) -> None:
+        self.total, self.jobs, self.step, self.clock = total, max(1, jobs), step, clock
+        self.start = clock() if start is None else start
+        self.done = 0
+        self.seconds: list[float] = []
+
+    def finished(self, seconds: float | None) -> str:
+        """Count one finished run (`seconds` it took; None: skipped); the line to print."""
+        self.done += 1
+        if seconds is not None:
+            self.seconds.append(seconds)
+        left = self.total - self.done
+        if left == 0:
+            eta = "0:00:00"
+        elif self.seconds:
+            mean = sum(self.seconds) / len(self.seconds)
+            eta = clock_text(mean * left / min(self.jobs, left))
+        else:
+            eta = "unknown"
+        step = f"step {self.step}: " if self.step is not None else ""
+        return (f"progress: {step}{self.done} of {self.total} runs finished, elapsed "
+                f"{clock_text(self.clock() - self.start)}, ETA {eta}")
+
+
+def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool,
+             progress: Progress | None = None) -> int:
     """Run the plan, `jobs` runs at a time on `ranks` ranks each; the output of each goes to
-    <dir>/run.log. Finished runs are skipped unless `force`. Returns the number of failures."""
+    <dir>/run.log. Finished runs are skipped unless `force`. After each run a Progress line
+    (`progress`, default one for this plan). Returns the number of failures."""
     prefix, env = mpi.mpi_prefix(ranks), mpi.mpi_env(jobs)
     lock = threading.Lock()
+    progress = progress or Progress(len(plan), jobs)
 
-    def say(text: str) -> None:
+    def say(text: str, seconds: float | None = None) -> None:
         with lock:
             print(text, flush=True)
+            print(progress.finished(seconds), flush=True)
 
     def one(r: PlannedRun) -> bool:
         status = run_status(r.h5)
@@ -274,7 +318,8 @@ def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
         if r.h5.exists():
             args += ["--set", "output.overwrite=.true."]
         log = r.dir / "run.log"
-        say(f"start  {r.id}")
+        with lock:
+            print(f"start  {r.id}", flush=True)
         t0 = time.monotonic()
         with log.open("w") as f:
             f.write(f"# {shlex.join(prefix + args)}\n")
@@ -287,9 +332,9 @@ def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool) -> int:
                 code = -1
         seconds = time.monotonic() - t0
         if code == 0:
-            say(f"done   {r.id} ({seconds:.1f} s)")
+            say(f"done   {r.id} ({seconds:.1f} s)", seconds)
             return True
-        say(f"FAILED {r.id}: exit status {code} after {seconds:.1f} s; see {log}")
+        say(f"FAILED {r.id}: exit status {code} after {seconds:.1f} s; see {log}", seconds)
         return False
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
@@ -820,9 +865,16 @@ def slurm_launcher(out: Path, ntasks: int, time_limit: str, partition: str | Non
 
 
 def local_launcher(jobs: int, ranks: int):
+    """Each call runs the rows of `todo` here (run_plan); the progress lines count the runs of
+    that step (the n-th call) and the time since the first call."""
+    start = time.monotonic()
+    steps = 0
+
     def launch(todo: list[PlannedRun], every: list[PlannedRun]) -> None:
+        nonlocal steps
+        steps += 1
         write_plan(every, todo[0].dir.parent)
-        run_plan(todo, jobs, ranks, force=False)
+        run_plan(todo, jobs, ranks, force=False, progress=Progress(len(todo), jobs, steps, start))
 
     return launch
 
@@ -1014,7 +1066,9 @@ def parser() -> argparse.ArgumentParser:
         "run", help="run the plan here",
         description="Run the plan here, N runs at a time, each on R MPI ranks (launcher: "
         "$MPIEXEC, default mpiexec). Each run's output goes to DIR/<id>/run.log. A run "
-        "whose file is already finished is skipped. Exit status 1 if any run failed.")
+        "whose file is already finished is skipped. After each run a line 'progress: K of N "
+        "runs finished, elapsed H:MM:SS, ETA H:MM:SS' (ETA: the mean time per run so far, "
+        "the runs left, N at a time). Exit status 1 if any run failed.")
     with_out(run)
     run.add_argument("--jobs", type=int, default=1, metavar="N",
                      help="runs at the same time (default 1)")
@@ -1067,7 +1121,9 @@ def parser() -> argparse.ArgumentParser:
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
         "the final bracket. Rerunning the command reuses the finished runs (also with another "
         "--lo, --hi or --tol: only new points run); another base scene or --set list for "
-        "the same DIR is refused.")
+        "the same DIR is refused. Here, after each run a line 'progress: step S: K of N runs "
+        "finished, elapsed H:MM:SS, ETA H:MM:SS' (elapsed since the bisection started, ETA "
+        "of step S).")
     bis.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
     bis.add_argument("--key", choices=("gamma", "dh"), required=True,
                      help="pair.gamma (D_1/D_2) or pair.dh (D_h/D_1)")

@@ -235,10 +235,11 @@ def fake_bisect(base: Path, out: Path) -> list[str | Path]:
 
 def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
     """`sweep.py bisect` here (runs through run_plan with a stand-in mpiexec): exit 0, the
-    summary line last, bisect.csv with a row per run and the bracket, runs.csv holding every
-    run with the plan's command form; `collect` on the same directory adds status, t_end,
-    settled and left_window after the regime.csv columns, agreeing with bisect.csv. A second
-    identical command reruns nothing; one with another --set is refused (exit 2)."""
+    summary line last, a progress line per run (K of N of each step), bisect.csv with a row
+    per run and the bracket, runs.csv holding every run with the plan's command form;
+    `collect` on the same directory adds status, t_end, settled and left_window after the
+    regime.csv columns, agreeing with bisect.csv. A second identical command reruns nothing;
+    one with another --set is refused (exit 2)."""
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
@@ -249,6 +250,16 @@ def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
     assert proc.returncode == 0, proc.stdout + proc.stderr
     last = proc.stdout.strip().splitlines()[-1]
     assert last.startswith("gamma threshold between ") and "(repeated) and" in last
+    # a progress line after each run, counting the runs of each step from 1 to their number
+    steps: dict[int, list[int]] = {}
+    for m in re.finditer(r"^progress: step (\d+): (\d+) of (\d+) runs finished, elapsed "
+                         r"\d+:\d\d:\d\d, ETA (?:unknown|\d+:\d\d:\d\d)$",
+                         proc.stdout, flags=re.M):
+        steps.setdefault(int(m.group(1)), []).append(int(m.group(2)))
+        assert int(m.group(2)) <= int(m.group(3))
+    assert sorted(steps) == list(range(1, len(steps) + 1)) and len(steps) >= 2
+    assert all(counts == list(range(1, len(counts) + 1)) for counts in steps.values())
+    assert sum(map(len, steps.values())) == len(re.findall(r"^done ", proc.stdout, flags=re.M))
     bis = list(csv.DictReader((out / "bisect.csv").open()))
     runs = [r for r in bis if r["row"] == "run"]
     plan = list(csv.DictReader((out / "runs.csv").open()))
