@@ -38,9 +38,8 @@ def run(command: list[str | Path], **kwargs) -> subprocess.CompletedProcess[str]
     return proc
 
 
-@pytest.fixture(scope="module")
-def installed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    base = tmp_path_factory.mktemp("install")
+def install(base: Path) -> dict[str, Path]:
+    """This build installed into base/prefix, the package into the venv base/venv."""
     prefix, venv, source = base / "prefix", base / "venv", base / "source"
     run([CMAKE, "--install", BUILD, "--prefix", prefix])
     source.mkdir()
@@ -56,6 +55,11 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
                              capture_output=True).returncode == 0
     run([*pip, *(["--no-build-isolation"] if offline else []), source], env=env, cwd=base)
     return {"prefix": prefix, "venv": venv}
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    return install(tmp_path_factory.mktemp("install"))
 
 
 def mpi_launcher() -> Path:
