@@ -1,7 +1,10 @@
 """One flow field of a run at one time: the stored snapshot nearest to --time, drawn in
 physical coordinates (x from 0 to W, y from the window offset up, cm, equal aspect) with the
 particles as circles at their positions at that time (the nearest /particles sample). Nodes
-inside a particle are left blank. Vorticity uses a diverging colour map centred on zero."""
+inside a particle are left blank. Vorticity uses a diverging colour map centred on zero.
+
+--movie draws every stored snapshot instead, one frame each, into an MP4 (ffmpeg), or a GIF
+when ffmpeg is not found; the colour range is the same in every frame."""
 
 from __future__ import annotations
 
@@ -13,9 +16,11 @@ import numpy as np
 
 from .read import (
     FIELD_NAMES,
+    Run,
     RunFileError,
     Snapshot,
     add_output_options,
+    field_times,
     guarded,
     open_run,
     output_path,
@@ -55,22 +60,38 @@ def parser() -> argparse.ArgumentParser:
                    "(default: from the 99th percentile of the data)")
     p.add_argument("--cmap", help="matplotlib colour map (default RdBu_r for vorticity, "
                    "viridis otherwise)")
+    p.add_argument("--movie", nargs="?", const="", metavar="OUT.mp4",
+                   help="a movie of every stored snapshot instead of one picture: OUT.mp4 "
+                   "(default: beside the run file, <name>_<field>.mp4), a GIF (.gif) when "
+                   "ffmpeg is not found")
+    p.add_argument("--fps", type=float, default=5.0,
+                   help="with --movie: frames (snapshots) per second (default 5)")
     return p
 
 
-def particle_circles(path: Path, time: float) -> tuple[list[tuple[float, float, float]], float]:
-    """(x, y, radius) of each particle at the /particles sample nearest to `time` (none for a
-    run without particles), and t_ref of t* (s)."""
+def open_particles(path: Path) -> tuple[Run | None, float]:
+    """The run's particles (None for a run without them) and t_ref of t* (s)."""
     try:
         run = open_run(path)
     except RunFileError as exc:
         if "no particles" in exc.what:
-            return [], run_t_ref(path)
+            return None, run_t_ref(path)
         raise
+    return run, run.t_ref
+
+
+def circles_at(run: Run | None, time: float) -> list[tuple[float, float, float]]:
+    """(x, y, radius) of each particle at the /particles sample nearest to `time`."""
+    if run is None:
+        return []
     i = int(np.argmin(np.abs(run.t - time)))
-    circles = [(float(run.series["x"][i, k]), float(run.series["y"][i, k]),
-                0.5 * float(run.diameters[k])) for k in range(run.count)]
-    return circles, run.t_ref
+    return [(float(run.series["x"][i, k]), float(run.series["y"][i, k]),
+             0.5 * float(run.diameters[k])) for k in range(run.count)]
+
+
+def title_of(path: Path, snap: Snapshot, t_ref: float) -> str:
+    return (f"{path.stem}: {snap.name} at t = {snap.time:.4g} s "
+            f"(t* = {snap.time / t_ref:.3g}, step {snap.step})")
 
 
 def plot(snap: Snapshot, circles: list[tuple[float, float, float]], title: str,
@@ -119,9 +140,60 @@ def plot(snap: Snapshot, circles: list[tuple[float, float, float]], title: str,
     return fig
 
 
+def movie(path: Path, name: str, out: Path | None, ylim: tuple[float, float] | None,
+          vmax: float | None, cmap: str | None, fps: float) -> Path:
+    """Every stored snapshot of field `name`, in time order, one frame each, with the disks
+    and the time in the title: an MP4 through ffmpeg, else (ffmpeg not on PATH) a GIF. The
+    colour range is the first frame's, from the 99th percentile of all snapshots when `vmax`
+    is not given. Returns the file written."""
+    from matplotlib import animation
+    from matplotlib.patches import Circle
+
+    snaps = [read_field(path, name, t) for _, t in field_times(path)]
+    run, t_ref = open_particles(path)
+    if vmax is None:
+        values = np.concatenate([np.abs(s.data[np.isfinite(s.data)]).ravel() for s in snaps])
+        vmax = float(np.percentile(values, 99)) if values.size else None
+    if animation.FFMpegWriter.isAvailable():
+        writer, suffix = animation.FFMpegWriter(fps=fps), ".mp4"
+    else:
+        writer, suffix = animation.PillowWriter(fps=fps), ".gif"
+        print("ffmpeg not found: writing a GIF")
+    out = out if out is not None else path.with_name(f"{path.stem}_{name}.mp4")
+    out = out.with_suffix(suffix)
+    out.parent.mkdir(parents=True, exist_ok=True)
+
+    first = snaps[0]
+    fig = plot(first, circles_at(run, first.time), title_of(path, first, t_ref), ylim, vmax,
+               cmap)
+    ax = fig.axes[0]
+    image = ax.images[0]
+    with writer.saving(fig, str(out), dpi=100):
+        for snap in snaps:
+            data = snap.data.copy()
+            if snap.solid is not None:
+                data[snap.solid] = np.nan
+            image.set_data(np.ma.masked_invalid(data))
+            image.set_extent(snap.extent)
+            x0, x1, y0, y1 = snap.extent
+            if ylim is not None:
+                y0, y1 = max(y0, min(ylim)), min(y1, max(ylim))
+            ax.set_ylim(y0, y1)
+            for patch in list(ax.patches):
+                patch.remove()
+            for x, y, r in circles_at(run, snap.time):
+                ax.add_patch(Circle((x, y), r, fill=False, edgecolor="k", linewidth=1.0))
+            ax.set_title(title_of(path, snap, t_ref), fontsize="medium")
+            writer.grab_frame()
+    print(f"wrote {out} ({len(snaps)} frames)")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = parser()
     args = p.parse_args(argv)
+    if not args.fps > 0:
+        p.error(f"--fps must be positive (got {args.fps:g})")
     if args.cmap is not None:
         import matplotlib
 
@@ -129,12 +201,15 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--cmap: unknown colour map {args.cmap!r}")
 
     def body() -> int:
+        ylim = tuple(args.ylim) if args.ylim else None
+        if args.movie is not None:
+            movie(args.run, args.field, Path(args.movie) if args.movie else None, ylim,
+                  args.vmax, args.cmap, args.fps)
+            return 0
         snap = read_field(args.run, args.field, args.time)
-        circles, t_ref = particle_circles(args.run, snap.time)
-        title = (f"{args.run.stem}: {snap.name} at t = {snap.time:.4g} s "
-                 f"(t* = {snap.time / t_ref:.3g}, step {snap.step})")
-        fig = plot(snap, circles, title, tuple(args.ylim) if args.ylim else None, args.vmax,
-                   args.cmap)
+        run, t_ref = open_particles(args.run)
+        fig = plot(snap, circles_at(run, snap.time), title_of(args.run, snap, t_ref), ylim,
+                   args.vmax, args.cmap)
         save_figure(fig, output_path(args.run, f"{args.field}", args.output), args.pdf)
         return 0
 

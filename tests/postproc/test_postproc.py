@@ -374,7 +374,8 @@ def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None
         np.testing.assert_allclose(snap.data, np.hypot(g["ux"][()], g["uy"][()]))
         assert snap.solid is not None and np.array_equal(snap.solid, g["particle"][()] > 0)
     assert read.read_field(f, "rho").time == pytest.approx(syn.T_END)  # default: the last
-    circles, t_ref = field.particle_circles(f, snap.time)
+    run, t_ref = field.open_particles(f)
+    circles = field.circles_at(run, snap.time)
     i = int(np.argmin(np.abs(syn.T - 1.5)))
     assert np.ravel(circles) == pytest.approx([s["x"][i, 0], s["y"][i, 0], 0.1,
                                                s["x"][i, 1], s["y"][i, 1], 0.05])
