@@ -63,7 +63,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--movie", nargs="?", const="", metavar="OUT.mp4",
                    help="a movie of every stored snapshot instead of one picture: OUT.mp4 "
                    "(default: beside the run file, <name>_<field>.mp4), a GIF (.gif) when "
-                   "ffmpeg is not found")
+                   "ffmpeg is not found or OUT ends in .gif")
     p.add_argument("--fps", type=float, default=5.0,
                    help="with --movie: frames (snapshots) per second (default 5)")
     return p
@@ -154,7 +154,9 @@ def movie(path: Path, name: str, out: Path | None, ylim: tuple[float, float] | N
     if vmax is None:
         values = np.concatenate([np.abs(s.data[np.isfinite(s.data)]).ravel() for s in snaps])
         vmax = float(np.percentile(values, 99)) if values.size else None
-    if animation.FFMpegWriter.isAvailable():
+    if out is not None and out.suffix.lower() == ".gif":
+        writer, suffix = animation.PillowWriter(fps=fps), ".gif"  # asked for
+    elif animation.FFMpegWriter.isAvailable():
         writer, suffix = animation.FFMpegWriter(fps=fps), ".mp4"
     else:
         writer, suffix = animation.PillowWriter(fps=fps), ".gif"

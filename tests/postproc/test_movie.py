@@ -1,7 +1,6 @@
-"""dkt-field --movie: one frame per stored field snapshot, as an MP4 when ffmpeg is found and
-as a GIF when it is not (PATH without ffmpeg), each frame counted back from the file written
-(ffprobe for the MP4, Pillow for the GIF); the frames differ (the window, the disks and the
-time in the title move).
+"""dkt-field --movie: one frame per stored field snapshot, as an MP4 when ffmpeg is found, as
+a GIF when it is not (PATH without ffmpeg) or when OUT ends in .gif, each frame counted back
+from the file written (ffprobe for the MP4, Pillow for the GIF).
 """
 
 from __future__ import annotations
@@ -49,6 +48,17 @@ def test_mp4_has_a_frame_per_snapshot(run_file: Path) -> None:
                             "-show_entries", "stream=nb_read_frames", "-of", "csv=p=0",
                             str(mp4)], capture_output=True, text=True, check=True)
     assert int(probe.stdout.strip()) == snapshots(run_file)
+
+
+def test_gif_when_asked_for(run_file: Path, tmp_path: Path) -> None:
+    """OUT.gif is written as a GIF whether or not ffmpeg is there, a frame per snapshot."""
+    gif = tmp_path / "asked.gif"
+    proc = field_movie(run_file, str(gif), "--fps", "2")
+    assert proc.returncode == 0, proc.stderr
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        assert image.format == "GIF" and image.n_frames == snapshots(run_file)
 
 
 def test_gif_without_ffmpeg_has_a_frame_per_snapshot(run_file: Path, tmp_path: Path) -> None:
