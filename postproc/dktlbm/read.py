@@ -183,6 +183,16 @@ def _dktlbm(args: list[str], scene: str | None, what: str) -> str:
     return proc.stdout
 
 
+def _overlay(values: list[str], given: list[str]) -> list[str]:
+    """`values` with each element that `given` sets (not '') in its place."""
+    out = list(values)
+    for i, v in enumerate(given):
+        if v != "":
+            out.extend([""] * (i + 1 - len(out)))
+            out[i] = v
+    return out
+
+
 @functools.cache
 def program_settings(text: str | None = None) -> dict[str, dict[str, list[str]]]:
     """Every input key as dktlbm makes it of the namelist `text` (None: its defaults), from
@@ -193,16 +203,11 @@ def program_settings(text: str | None = None) -> dict[str, dict[str, list[str]]]
         try:
             return parse_namelist(_dktlbm(["--print-defaults"], text, "the stored namelist"))
         except LaunchError:
-            merged = {g: {k: list(v) for k, v in keys.items()}
-                      for g, keys in program_settings(None).items()}
+            merged = {g: dict(keys) for g, keys in program_settings(None).items()}
             for group, keys in parse_namelist(text).items():
+                into = merged.setdefault(group, {})
                 for key, values in keys.items():
-                    into = merged.setdefault(group, {}).setdefault(key, [])
-                    for i, v in enumerate(values):
-                        if v == "":
-                            continue
-                        into.extend([""] * (i + 1 - len(into)))
-                        into[i] = v
+                    into[key] = _overlay(into.get(key, []), values)
             return merged
     return parse_namelist(_dktlbm(["--print-defaults"], None, "--print-defaults"))
 
@@ -247,12 +252,7 @@ class RunSettings:
         given = self.given.get(group, {}).get(key, [])
         if given and all(v != "" for v in given):
             return given
-        program = program_settings(self.text).get(group, {}).get(key, [])
-        merged = list(program)
-        for i, v in enumerate(given):
-            if v != "":
-                merged.extend([""] * (i + 1 - len(merged)))
-                merged[i] = v
+        merged = _overlay(program_settings(self.text).get(group, {}).get(key, []), given)
         if not merged:
             raise LaunchError(f"dktlbm knows no input key {group}.{key}")
         return merged

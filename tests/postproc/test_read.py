@@ -7,7 +7,8 @@
 - For a file that lacks the scales in /run, the values the reader takes (t_ref, gravity,
   fluid density and viscosity, width, diameters, kissing thresholds) equal what the dktlbm
   executable reports for the stored namelist (`--print-defaults`, and `--check` for the
-  thresholds), parsed here independently of the reader.
+  thresholds), parsed here independently of the reader; when the executable refuses the
+  stored namelist, its defaults with the namelist's values over them.
 """
 
 from __future__ import annotations
@@ -182,3 +183,25 @@ def test_thresholds_of_an_old_file_are_the_executables(tmp_path: Path, collision
     limits = read.pair_of(read.open_run(f)).limits
     assert limits.enter / syn.DX == pytest.approx(float(found.group(1)), abs=0.005)
     assert limits.release / syn.DX == pytest.approx(float(found.group(2)), abs=0.005)
+
+
+def test_a_namelist_the_executable_refuses_takes_its_defaults_under_its_values(
+        tmp_path: Path) -> None:
+    """An old file whose stored namelist dktlbm refuses as a whole (two particles both at the
+    default position): the values it gives (diameter(2)) over the executable's defaults
+    (`dktlbm --print-defaults` without a file) for the rest (diameter(1), t_ref)."""
+    f = tmp_path / "refused.h5"
+    syn.write_run(f, syn.SHAPES["never"], (0.2, 0.1), fields=False)
+    scene = "&particles\n  count = 2, diameter(2) = 0.1\n/\n"
+    (tmp_path / "scene.nml").write_text(scene)
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+    refused = subprocess.run([EXE, str(tmp_path / "scene.nml"), "--print-defaults"],
+                             capture_output=True, text=True, env=env)
+    assert refused.returncode != 0, "the scene must be one the executable refuses"
+    with h5py.File(f, "r+") as h5:
+        h5["run"].attrs["namelist"] = np.bytes_(scene.encode())
+    out = subprocess.run([EXE, "--print-defaults"], capture_output=True, text=True, check=True,
+                         env=env).stdout
+    run = read.open_run(f)
+    assert run.t_ref == printed(out, "run", "t_ref")[0]
+    np.testing.assert_array_equal(run.diameters, [printed(out, "particles", "diameter")[0], 0.1])
