@@ -4,11 +4,11 @@ used, gamma = D_1/D_2 and D_h/D_1.
 
 A file with /diagnostics is reported as the program classified it. Giving any threshold
 option classifies the gap again here, the options not given keeping the run's own settings
-(stored in /run; for older files the defaults): enter = max(enter_cells dx, enter_d1 D_1)
-(defaults 2 and 0.05), release = max(release_cells dx, release_d1 D_1) (defaults 4 and 0.25).
-A file without /diagnostics is classified here from /particles with its own settings (or the
-defaults). A run that stopped early (a guard, a signal, the wall limit, an error) is classified
-up to where it stopped, and the report says so and why (JSON: stop_reason, complete)."""
+(stored in /run; for older files its namelist and dktlbm's defaults, asked of the executable):
+enter = max(enter_cells dx, enter_d1 D_1), release = max(release_cells dx, release_d1 D_1).
+A file without /diagnostics is classified here from /particles with its own settings. A run
+that stopped early (a guard, a signal, the wall limit, an error) is classified up to where it
+stopped, and the report says so and why (JSON: stop_reason, complete)."""
 
 from __future__ import annotations
 

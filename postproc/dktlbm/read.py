@@ -723,8 +723,8 @@ def pair_of(run: Run, limits: dict[str, float] | None = None,
     """The pair (particles 1 and 2) of `run`. With /diagnostics its series, thresholds,
     pattern and episodes are taken as written, unless `limits` (any of enter_cells, enter_d1,
     release_cells, release_d1) is given: then the gap is classified here with those values
-    (the defaults for the others). `from_particles` ignores /diagnostics: everything is
-    computed from /particles (to check one against the other)."""
+    (the run's own settings for the others). `from_particles` ignores /diagnostics: everything
+    is computed from /particles (to check one against the other)."""
     if run.count < 2:
         raise RunFileError(run.path, f"the run has {run.count} particle; a pair needs 2")
     diag = run.diagnostics
