@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import shlex
 import signal
 import subprocess
 import time
@@ -13,25 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
+from dktlbm import launch
+
 ROOT = Path(os.environ.get("DKTLBM_ROOT", Path(__file__).resolve().parents[1]))
-EXE = Path(os.environ.get("DKTLBM_EXE", ROOT / "build" / "dktlbm"))
+EXE = Path(launch.find_exe() or ROOT / "build" / "dktlbm")
 INPUT = ROOT / "input"
-
-
-def mpi_command(ranks: int) -> list[str]:
-    """The mpiexec prefix for `ranks` processes (as root, oversubscribed, like ctest sets it)."""
-    mpiexec = os.environ.get("MPIEXEC", "mpiexec")
-    flag = os.environ.get("MPIEXEC_NUMPROC_FLAG", "-n")
-    pre = shlex.split(os.environ.get("MPIEXEC_PREFLAGS", "--oversubscribe"))
-    return [mpiexec, flag, str(ranks), *pre]
-
-
-def mpi_env() -> dict[str, str]:
-    env = dict(os.environ)
-    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
-    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-    env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
-    return env
+# the MPI launch prefix for N ranks and its environment: dktlbm.launch (postproc/dktlbm)
+mpi_command = launch.mpi_prefix
+mpi_env = launch.mpi_env
 
 
 def run(

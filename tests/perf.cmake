@@ -16,7 +16,7 @@ if(Python3_FOUND)
     RUN_SERIAL TRUE
     # Not the test environment: that one allows oversubscription, which Open MPI answers by not
     # binding ranks to cores.
-    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1;PYTHONPATH=${PROJECT_SOURCE_DIR}/postproc")
 endif()
 
 # STREAM-like memory bandwidth of the machine (tests/perf/stream_copy.f90), the ceiling of the
@@ -45,5 +45,5 @@ if(Python3_FOUND)
     LABELS perf
     TIMEOUT 600
     RUN_SERIAL TRUE
-    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1;PYTHONPATH=${PROJECT_SOURCE_DIR}/postproc")
 endif()

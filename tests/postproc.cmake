@@ -5,7 +5,17 @@
 # here and through Slurm stand-ins, plus one real bisection of ten coarse runs, under a minute).
 dkt_add_pytest(NAME postproc FILE tests/postproc/test_postproc.py LABELS postproc PROCESSORS 2
   TIMEOUT 600)
+# The reader on the old and the new form of the run file, and the values it takes for files
+# without stored scales against what the executable reports (--print-defaults, --check).
+dkt_add_pytest(NAME postproc_read FILE tests/postproc/test_read.py LABELS postproc)
+# dkt-field --movie: a frame per stored snapshot, MP4 (ffprobe) or GIF without ffmpeg.
+dkt_add_pytest(NAME postproc_movie FILE tests/postproc/test_movie.py LABELS postproc)
 dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS postproc
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
+# The install as a new user meets it: `cmake --install` into a scratch prefix, the package
+# pip-installed into a scratch venv, and from an empty directory with only their bin
+# directories on PATH an example scene on 2 ranks, dkt-gap and dkt-pattern.
+dkt_add_pytest(NAME install FILE tests/test_install.py LABELS postproc PROCESSORS 2 TIMEOUT 600
+  ENV "DKT_BUILD_DIR=${CMAKE_BINARY_DIR}" "DKT_CMAKE=${CMAKE_COMMAND}")

@@ -20,6 +20,8 @@ from pathlib import Path
 import pytest
 
 from dkt_run import EXE, INPUT, ROOT, mpi_env, run
+from dktlbm.read import run_status
+from test_install import install, user_env
 from test_restart import LONG_SETS, assert_same_output
 
 SWEEP_PY = ROOT / "postproc" / "sweep.py"
@@ -360,3 +362,36 @@ def test_sweep_py_slurm_plan_collected_into_a_regime_map(tmp_path: Path) -> None
     patterns = collect(out)
     assert all(p not in ("missing", "failed", "stopped") for p in patterns.values()), patterns
     assert (out / "regime.png").stat().st_size > 0
+
+
+def test_installed_sweep_submitted_from_an_empty_directory(tmp_path: Path) -> None:
+    """The installed copy (cmake --install prefix, package in a venv; no source tree on any
+    path): `dkt-sweep plan` of an installed example and `dkt-sweep slurm`, run from an empty
+    directory, write an array whose commands start the installed dktlbm and whose script holds
+    the installed dkt_job.sh; sbatch-ed, it finishes both runs."""
+    installed = install(tmp_path / "install")
+    env = user_env(installed)
+    env["PATH"] += os.pathsep + str(Path(shutil.which("sbatch") or "/usr/bin/sbatch").parent)
+    here = tmp_path / "empty"
+    here.mkdir()
+    scene = installed["prefix"] / "share" / "dktlbm" / "examples" / "case0.nml"
+    name = "dkt-installed-sweep"
+    sets = [a for s in LONG_SETS for a in ("--set", s)]
+    for args in (["plan", scene, "--dh", "2,2.0001", *sets, "--out", "sweep"],
+                 ["slurm", "--out", "sweep", "--time", "00:05:00", "--job-name", name]):
+        proc = subprocess.run(["dkt-sweep", *map(str, args)], capture_output=True, text=True,
+                              timeout=120, env=env, cwd=here)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+    with (here / "sweep" / "runs.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    exe = installed["prefix"] / "bin" / "dktlbm"
+    assert len(rows) == 2 and all(r["command"].startswith(f"{exe} ") for r in rows), rows
+    script = (here / "sweep" / "sweep.slurm").read_text()
+    installed_lib = installed["prefix"] / "share" / "dktlbm" / "slurm" / "dkt_job.sh"
+    assert installed_lib.read_text() in script
+    sbatch(["--ntasks=1", "sweep/sweep.slurm"], here, {**env, **mpi_env()})
+    wait_gone(name)
+    for r in rows:
+        log = (here / "sweep" / r["id"] / "run.log").read_text()
+        assert str(exe) in log, log
+        assert run_status(here / "sweep" / r["id"] / "case0.h5") == "finished", log

@@ -9,6 +9,8 @@
 # - Python modules for the post-processing and the tests (numpy h5py matplotlib pytest
 #   fprettify ruff), for the python3 on PATH; installed with pip when run as root or when that
 #   Python's site-packages is writable (venv, pyenv, conda); otherwise the command is printed.
+# - The dktlbm Python package (postproc/dktlbm: `import dktlbm`, the dkt-* commands), installed
+#   editable (pip install -e) for the same python3, under the same conditions.
 # - Then configures (once) and builds the release preset.
 # Quiet when everything is there already; safe to run again.
 set -euo pipefail
@@ -17,7 +19,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 
 apt_packages=(gfortran libopenmpi-dev openmpi-bin libhdf5-openmpi-dev hdf5-tools cmake ninja-build
-  python3 python3-pip)
+  python3 python3-pip python3-venv)
 python_modules=(numpy h5py matplotlib pytest fprettify ruff)
 
 say() { printf 'setup: %s\n' "$*"; }
@@ -109,6 +111,41 @@ sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["stdlib"], "EXTER
       extra=""
     fi
     todo+=("python3 -m pip install --user${extra} ${missing_py[*]}")
+  fi
+fi
+
+# ---------------------------------------------------------------- the dktlbm package
+# Editable: the commands run the tree's code, edits included. Skipped when this tree's package
+# is what python3 imports already (outside the tree, so that PYTHONPATH does not count).
+package_here() {
+  [ "$(cd / && env -u PYTHONPATH python3 -c 'import dktlbm, os
+print(os.path.dirname(os.path.realpath(dktlbm.__file__)))' 2>/dev/null)" = \
+    "$(cd "$root/postproc/dktlbm" && pwd -P)" ]
+}
+if [ ${#missing_py[@]} -eq 0 ] && command -v python3 >/dev/null 2>&1 && ! package_here; then
+  site_writable=$(python3 -c 'import os, sysconfig
+print(int(os.access(sysconfig.get_paths()["purelib"], os.W_OK)))' 2>/dev/null || echo 0)
+  pip=(python3 -m pip install --disable-pip-version-check --no-input -q)
+  # offline when this Python can build an editable wheel itself (setuptools 64 or newer and
+  # wheel); else pip fetches them for the build
+  if python3 -c 'import setuptools, sys, wheel
+sys.exit(int(setuptools.__version__.split(".")[0]) < 64)' >/dev/null 2>&1; then
+    pip+=(--no-build-isolation)
+  fi
+  if is_root || [ "$site_writable" = 1 ]; then
+    say "installing the dktlbm package (pip install -e $root) for $(command -v python3)"
+    export PIP_ROOT_USER_ACTION=ignore
+    if ! "${pip[@]}" -e "$root" >"$log" 2>&1; then
+      if grep -q 'externally-managed-environment' "$log"; then
+        quietly "${pip[@]}" --break-system-packages -e "$root"
+      else
+        cat "$log" >&2
+        say "failed: ${pip[*]} -e $root" >&2
+        exit 1
+      fi
+    fi
+  else
+    todo+=("python3 -m pip install --user -e $root")
   fi
 fi
 

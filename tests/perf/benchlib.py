@@ -1,7 +1,8 @@
 """What the benchmark scripts of tests/perf share: launching, storage layouts, statistics.
 
-Standard library only. The scripts import it by plain name (their own directory is first on
-sys.path when they run).
+Standard library and dktlbm.launch (the MPI launch prefix). The scripts import it by plain name
+(their own directory is first on sys.path when they run); dktlbm comes from PYTHONPATH=postproc
+(ctest sets it) or from the installed package.
 
 Storage layouts are chosen with the input keys lbm.precision ('double' | 'single') and
 lbm.streaming ('two_lattice' | 'in_place'). An executable that refuses a layout (an older build
@@ -16,12 +17,13 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import re
 import statistics
 import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+from dktlbm import launch
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -104,19 +106,14 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
 
 def allow_root_mpi() -> None:
     """Open MPI refuses to run as root unless told (CI and containers run as root)."""
-    if os.geteuid() == 0:
-        os.environ.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        os.environ.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    for key, value in launch.root_env().items():
+        os.environ.setdefault(key, value)
 
 
 def launcher(mpiexec: str, ranks: int) -> list[str]:
-    """The mpiexec prefix for `ranks` ranks; Open MPI needs --oversubscribe past the cores."""
-    command = [mpiexec, "-n", str(ranks)]
-    if ranks > (os.cpu_count() or 1):
-        version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True)
-        if re.search(r"Open MPI|OpenRTE", version.stdout + version.stderr):
-            command.append("--oversubscribe")
-    return command
+    """The mpiexec prefix for `ranks` ranks; --oversubscribe (Open MPI) only past the cores, so
+    that the ranks stay bound to cores."""
+    return launch.mpi_prefix(ranks, mpiexec, past_cores_only=True)
 
 
 def first_error(output: str) -> str:

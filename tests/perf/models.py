@@ -21,6 +21,7 @@ collision.range (1, 2 spacings); everything else as the scene ships (25 spacings
 Each run lives in runs/models/<scene>/<variant>/ and is skipped when its result.json exists
 (tests/perf/tradeoff.py run_one). Prints the README's table and writes runs/models/models.csv.
 
+    export PYTHONPATH=postproc:tests            # the dktlbm package and dkt_run, as ctest sets it
     python3 tests/perf/models.py                      # all 8 variants x 3 scenes, 2 ranks
     python3 tests/perf/models.py --scenes case0_box --interior fluid
     python3 tests/perf/models.py --report-only
@@ -37,16 +38,11 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from precision_accuracy import episodes, pair_run
+from tradeoff import config_name, fmt, run_one
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent))
-
-from precision_accuracy import episodes, pair_run  # noqa: E402
-from tradeoff import config_name, fmt, run_one  # noqa: E402
-
-from dkt_run import ROOT  # noqa: E402
-from test_particles import REFDATA, series, uhlmann_events  # noqa: E402
+from dkt_run import ROOT
+from test_particles import REFDATA, series, uhlmann_events
 
 T_REF = 0.135526  # s, sqrt(H/g) for H = 18 cm (docs/model.md §6)
 SCENES = {

@@ -21,6 +21,8 @@ prints a markdown table (the precisions side by side, each against the first one
 
     tests/perf/precision_accuracy.py                                  # double and single
     tests/perf/precision_accuracy.py --precisions double single single_unshifted --rows single
+
+The test helpers it imports are found through PYTHONPATH=postproc:tests (ctest sets it).
 """
 
 from __future__ import annotations
@@ -35,12 +37,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-TESTS = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(TESTS))
-
-from dkt_run import EXE, INPUT, ROOT, mpi_command, run  # noqa: E402
-from test_particles import series  # noqa: E402
-from test_window import D, read_group, single_disk_scenes  # noqa: E402
+from dkt_run import EXE, INPUT, ROOT, mpi_command, run
+from test_particles import series
+from test_window import D, read_group, single_disk_scenes
 
 ROWS = ("single", "case0_box", "case1", "window")
 NO_FIELDS = ["output.field_interval=0"]

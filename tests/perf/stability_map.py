@@ -25,6 +25,8 @@ src/dkt_config.f90 (--check warns outside it) is the rule `safe_region` prints f
 
     tests/perf/stability_map.py                        # the committed grid (docs/stability.md)
     tests/perf/stability_map.py --taus 0.6 --reynolds 10 100 --out /tmp/map
+
+The test helpers it imports are found through PYTHONPATH=postproc:tests (ctest sets it).
 """
 
 from __future__ import annotations
@@ -32,14 +34,10 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import sys
 import time
 from pathlib import Path
 
-TESTS = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(TESTS))
-
-from dkt_run import INPUT, ROOT, run_args  # noqa: E402
+from dkt_run import INPUT, ROOT, run_args
 
 SCENE = INPUT / "single.nml"
 # input/single.nml

@@ -43,6 +43,8 @@ within each tolerance of the reference (preview, sweep, publication).
     tests/perf/tradeoff.py --scenes single case0_box --cpd 8 12 16 20 25 --precision double
     tests/perf/tradeoff.py --cpd 16 25 --precision single --axis lbm.mach=0.05,0.1
     tests/perf/tradeoff.py --report-only                                 # CSV and figure again
+
+The test helpers it imports are found through PYTHONPATH=postproc:tests (ctest sets it).
 """
 
 from __future__ import annotations
@@ -60,21 +62,16 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent))
-
-from benchlib import Finished, run_measured  # noqa: E402
-from precision_accuracy import (  # noqa: E402
+from benchlib import Finished, run_measured
+from precision_accuracy import (
     answers_case0_box,
     answers_case1,
     answers_single,
     relative,
 )
 
-from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env  # noqa: E402
-from test_particles import REFDATA, series  # noqa: E402
+from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env
+from test_particles import REFDATA, series
 
 TIME = Path("/usr/bin/time")
 # reads the answers, (quantity, value) pairs, of a finished run directory

@@ -25,8 +25,8 @@ from pathlib import Path
 import bisect_fake as fake
 import pytest
 
-import sweep
 from dkt_run import EXE, ROOT, mpi_env
+from dktlbm import sweep
 
 SWEEP = ROOT / "postproc" / "sweep.py"
 FAKE = Path(__file__).resolve().parent / "bisect_fake.py"
@@ -235,20 +235,31 @@ def fake_bisect(base: Path, out: Path) -> list[str | Path]:
 
 def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
     """`sweep.py bisect` here (runs through run_plan with a stand-in mpiexec): exit 0, the
-    summary line last, bisect.csv with a row per run and the bracket, runs.csv holding every
-    run with the plan's command form; `collect` on the same directory adds status, t_end,
-    settled and left_window after the regime.csv columns, agreeing with bisect.csv. A second
-    identical command reruns nothing; one with another --set is refused (exit 2)."""
+    summary line last, a progress line per run (K of N of each step), bisect.csv with a row
+    per run and the bracket, runs.csv holding every run with the plan's command form;
+    `collect` on the same directory adds status, t_end, settled and left_window after the
+    regime.csv columns, agreeing with bisect.csv. A second identical command reruns nothing;
+    one with another --set is refused (exit 2)."""
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
-    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
     out = tmp_path / "b"
     command = fake_bisect(base, out)
     proc = sweep_cli(*command, env=env)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     last = proc.stdout.strip().splitlines()[-1]
     assert last.startswith("gamma threshold between ") and "(repeated) and" in last
+    # a progress line after each run, counting the runs of each step from 1 to their number
+    steps: dict[int, list[int]] = {}
+    for m in re.finditer(r"^progress: step (\d+): (\d+) of (\d+) runs finished, elapsed "
+                         r"\d+:\d\d:\d\d, ETA (?:unknown|\d+:\d\d:\d\d)$",
+                         proc.stdout, flags=re.M):
+        steps.setdefault(int(m.group(1)), []).append(int(m.group(2)))
+        assert int(m.group(2)) <= int(m.group(3))
+    assert sorted(steps) == list(range(1, len(steps) + 1)) and len(steps) >= 2
+    assert all(counts == list(range(1, len(counts) + 1)) for counts in steps.values())
+    assert sum(map(len, steps.values())) == len(re.findall(r"^done ", proc.stdout, flags=re.M))
     bis = list(csv.DictReader((out / "bisect.csv").open()))
     runs = [r for r in bis if r["row"] == "run"]
     plan = list(csv.DictReader((out / "runs.csv").open()))
@@ -474,7 +485,7 @@ def test_kiss_mode_settles_a_kiss_at_once_and_never_as_before(
     mpiexec = stand_in(
         tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
     )
-    env = {**os.environ, "MPIEXEC": str(mpiexec)}
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
     command = ["bisect", base, "--key", "gamma", "--lo", "1", "--hi", "2", "--tol", "0.01",
                "--exe", FAKE, "--out", out, "--jobs", "2", "--max-t-end", "32",
                "--max-above", "60", "--kiss"]  # fmt: skip

@@ -17,10 +17,8 @@ import numpy as np
 import pytest
 import synthetic as syn
 
-import dktread
-import gap
-import pattern
 from dkt_run import ROOT, run
+from dktlbm import gap, pattern, read
 
 POSTPROC = ROOT / "postproc"
 PLOTS = {"gap": "gap", "trajectories": "trajectories", "drag": "drag", "field": "vorticity"}
@@ -83,14 +81,14 @@ def test_namelist_parser_reads_the_input_grammar() -> None:
 /
 &run t_end = 1d-1 &end
 """
-    nml = dktread.parse_namelist(text)
-    assert dktread.nml_float(nml, "domain", "width", 0.0) == 2.5
-    assert dktread.nml_float(nml, "domain", "height", 0.0) == 8.0
+    nml = read.parse_namelist(text)
+    assert read.nml_float(nml, "domain", "width", 0.0) == 2.5
+    assert read.nml_float(nml, "domain", "height", 0.0) == 8.0
     assert nml["domain"]["sides"] == ["wall"]
-    assert dktread.nml_floats(nml, "particles", "diameter") == [0.2, 0.05]
+    assert read.nml_floats(nml, "particles", "diameter") == [0.2, 0.05]
     assert nml["particles"]["motion"] == ["free", "it's!"]
-    assert dktread.nml_float(nml, "run", "t_end", 0.0) == pytest.approx(0.1)
-    assert dktread.nml_float(nml, "fluid", "density", 1.0) == 1.0  # absent: the default
+    assert read.nml_float(nml, "run", "t_end", 0.0) == pytest.approx(0.1)
+    assert read.nml_float(nml, "fluid", "density", 1.0) == 1.0  # absent: the default
 
 
 def test_classifier_follows_the_episode_definition() -> None:
@@ -99,20 +97,21 @@ def test_classifier_follows_the_episode_definition() -> None:
     but not above release keeps the episode; an episode still open ends at the last sample."""
     enter, release = 0.02, 0.05
     dr = np.array([0.3, 0.02, 0.05, 0.04, 0.0500001, 0.2, 0.01, 0.3, 0.019, 0.03])
-    episodes, is_open = dktread.classify(dr, enter, release)
+    episodes, is_open = read.classify(dr, enter, release)
     assert episodes == [(1, 4), (6, 7), (8, 9)]
     assert is_open
-    assert dktread.classify(np.array([0.3, 0.021, 0.3]), enter, release) == ([], False)
-    assert [dktread.pattern_name(n) for n in (0, 1, 2, 5)] == ["never", "once", "repeated",
+    assert read.classify(np.array([0.3, 0.021, 0.3]), enter, release) == ([], False)
+    assert [read.pattern_name(n) for n in (0, 1, 2, 5)] == ["never", "once", "repeated",
                                                                "repeated"]
 
 
 def test_thresholds_take_the_larger_of_spacings_and_d1_fraction() -> None:
-    """enter = max(2 dx, 0.05 D_1), release = max(4 dx, 0.25 D_1) by default: on a coarse
-    lattice the spacings decide, on a fine one the fractions of D_1."""
-    coarse = dktread.thresholds(0.025, 0.2)
+    """enter = max(2 dx, 0.05 D_1), release = max(4 dx, 0.25 D_1) for those settings: on a
+    coarse lattice the spacings decide, on a fine one the fractions of D_1."""
+    limits = {"enter_cells": 2.0, "enter_d1": 0.05, "release_cells": 4.0, "release_d1": 0.25}
+    coarse = read.thresholds(0.025, 0.2, **limits)
     assert (coarse.enter, coarse.release) == pytest.approx((0.05, 0.1))
-    fine = dktread.thresholds(0.001, 0.2)
+    fine = read.thresholds(0.001, 0.2, **limits)
     assert (fine.enter, fine.release) == pytest.approx((0.01, 0.05))
     assert coarse.enter_cells == pytest.approx(2.0) and fine.release_d1 == pytest.approx(0.25)
 
@@ -126,7 +125,7 @@ def test_pattern_computed_from_particles_matches_the_gap_curve(tmp_path: Path,
     D_h/D_1 are those of the construction."""
     f = tmp_path / f"{shape}.h5"
     s = syn.write_run(f, syn.SHAPES[shape], (0.2, 0.1))
-    pair = dktread.pair_of(dktread.open_run(f, need_particles=2))
+    pair = read.pair_of(read.open_run(f, need_particles=2))
     assert pair.source.startswith("computed")
     np.testing.assert_allclose(pair.dr, s["dr"], atol=1e-12)
     np.testing.assert_allclose(pair.dx, s["dx"], atol=1e-12)
@@ -147,20 +146,21 @@ def test_pattern_computed_from_particles_matches_the_gap_curve(tmp_path: Path,
 
 def test_scales_come_from_diagnostics_else_the_namelist(tmp_path: Path) -> None:
     """W, t_ref and g for the normalisation: from the namelist in /run when the file has no
-    /diagnostics (here W = 2.5 cm, t_ref = 0.2 s, g = 981), from the /diagnostics attributes
-    when it has them (which take precedence)."""
+    /diagnostics (here W = 2.5 cm, t_ref = 0.2 s, g = 981, so H = g t_ref^2 as the program
+    defines it), from the /diagnostics attributes when it has them (which take precedence)."""
     plain = tmp_path / "plain.h5"
     syn.write_run(plain, syn.SHAPES["never"], width=2.5, t_ref=0.2, gravity=981.0,
                   fields=False)
-    r = dktread.open_run(plain)
-    assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((2.5, 0.2, 981.0, 18.0))
-    assert r.velocity_scale == pytest.approx(math.sqrt(18.0 * 981.0))
+    r = read.open_run(plain)
+    h_ref = 981.0 * 0.2**2
+    assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((2.5, 0.2, 981.0, h_ref))
+    assert r.velocity_scale == pytest.approx(math.sqrt(h_ref * 981.0))
     diag = tmp_path / "diag.h5"
     syn.write_run(diag, syn.SHAPES["never"], width=2.5, t_ref=0.2, gravity=981.0,
                   fields=False, diagnostics={"attrs": {
                       "pattern": "never", "episodes": 0, "open_episode": 0, "width": 3.0,
                       "t_ref": 0.15, "gravity": 970.0, "h_ref": 17.5}})
-    r = dktread.open_run(diag)
+    r = read.open_run(diag)
     assert (r.width, r.t_ref, r.gravity, r.h_ref) == pytest.approx((3.0, 0.15, 970.0, 17.5))
 
 
@@ -184,17 +184,17 @@ def test_run_attributes_are_read_and_an_early_stop_is_reported(tmp_path: Path) -
             a["stop_reason"] = np.bytes_(reason.encode())
 
     store("finished")
-    r = dktread.open_run(f)
+    r = read.open_run(f)
     assert (r.t_ref, r.rho_f, r.mu) == pytest.approx((0.3, 1.2, 0.02))
-    lim = dktread.pair_of(r).limits
+    lim = read.pair_of(r).limits
     assert (lim.enter, lim.release) == pytest.approx((3.0 * syn.DX, 6.0 * syn.DX))
     assert r.complete and r.stop_note() is None
-    assert dktread.run_status(f) == "finished"
+    assert read.run_status(f) == "finished"
 
     for reason, says in (("signal", "stopped: signal"),
                          ("running", "killed or is still running")):
         store(reason)
-        assert dktread.run_status(f) == "failed"
+        assert read.run_status(f) == "failed"
         proc = script("pattern", f)
         assert proc.returncode == 0, proc.stderr
         assert f"incomplete: the run stopped early ({reason})" in proc.stdout
@@ -343,7 +343,7 @@ def test_gap_overlays_runs_with_the_label_that_differs(tmp_path: Path) -> None:
     syn.write_run(b, same_dh, (0.2, 0.1), fields=False)
     wide = [(0.0, 0.8), *syn.SHAPES["repeated"][1:]]  # D_h differs, gamma 1 as in a
     syn.write_run(c, wide, (0.2, 0.2), fields=False)
-    pairs = {k: dktread.pair_of(dktread.open_run(p)) for k, p in zip("abc", (a, b, c),
+    pairs = {k: read.pair_of(read.open_run(p)) for k, p in zip("abc", (a, b, c),
                                                                       strict=True)}
     assert gap.legend_labels([pairs["a"], pairs["b"]], "auto") == ["γ = 1", "γ = 2"]
     assert gap.legend_labels([pairs["a"], pairs["c"]], "auto") == ["$D_h/D_1$ = 3",
@@ -361,11 +361,11 @@ def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None
     1.5 s), placed at its window offset (extent y from the offset up by ny dx), speed = |u|,
     nodes inside particles marked, and the particle circles at the /particles sample nearest
     that time with radius D/2."""
-    import field
+    from dktlbm import field
 
     f = tmp_path / "w.h5"
     s = syn.write_run(f, syn.SHAPES["once"], (0.2, 0.1))
-    snap = dktread.read_field(f, "speed", time=1.1)
+    snap = read.read_field(f, "speed", time=1.1)
     assert snap.time == pytest.approx(1.5)
     offset = 10.5 - 0.8 * 1.5
     assert snap.extent == pytest.approx((0.0, syn.WIDTH, offset, offset + syn.NY_WINDOW * syn.DX))
@@ -373,8 +373,9 @@ def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None
         g = h5["fields"][snap.group]
         np.testing.assert_allclose(snap.data, np.hypot(g["ux"][()], g["uy"][()]))
         assert snap.solid is not None and np.array_equal(snap.solid, g["particle"][()] > 0)
-    assert dktread.read_field(f, "rho").time == pytest.approx(syn.T_END)  # default: the last
-    circles, t_ref = field.particle_circles(f, snap.time)
+    assert read.read_field(f, "rho").time == pytest.approx(syn.T_END)  # default: the last
+    run, t_ref = field.open_particles(f)
+    circles = field.circles_at(run, snap.time)
     i = int(np.argmin(np.abs(syn.T - 1.5)))
     assert np.ravel(circles) == pytest.approx([s["x"][i, 0], s["y"][i, 0], 0.1,
                                                s["x"][i, 1], s["y"][i, 1], 0.05])
@@ -476,18 +477,18 @@ def test_real_run_without_diagnostics(tmp_path: Path) -> None:
         out, timeout=120)
     f = out / "uhlmann.h5"
     plain = _without_diagnostics(f, tmp_path / "uhlmann.h5")
-    pair = dktread.pair_of(dktread.open_run(plain, need_particles=2))
+    pair = read.pair_of(read.open_run(plain, need_particles=2))
     assert pair.source.startswith("computed")
     assert pair.dr[0] == pytest.approx(math.hypot(0.001, 0.5) - 0.25, abs=1e-9)
     assert (pair.gamma, pair.dh, pair.d1) == pytest.approx((1.0, 2.0, 0.25))
     r = _all_scripts_on(plain, tmp_path)
     assert r["pattern"] == pair.pattern
-    assert dktread.read_field(plain, "vorticity").time == pytest.approx(0.05)
-    assert dktread.run_status(plain) == "finished"
+    assert read.read_field(plain, "vorticity").time == pytest.approx(0.05)
+    assert read.run_status(plain) == "finished"
     with h5py.File(f) as h5:
         if "diagnostics" not in h5:
             return
-    written = dktread.pair_of(dktread.open_run(f))
+    written = read.pair_of(read.open_run(f))
     assert written.source == "as written in /diagnostics"
     assert (written.limits.enter, written.limits.release) == pytest.approx(
         (pair.limits.enter, pair.limits.release))
@@ -510,8 +511,8 @@ def test_real_pair_run_diagnostics_agree_with_particles(tmp_path: Path) -> None:
     with h5py.File(f) as h5:
         if "diagnostics" not in h5:
             pytest.skip("this build does not write /diagnostics yet")
-    written = dktread.pair_of(dktread.open_run(f))
-    computed = dktread.pair_of(dktread.open_run(f), from_particles=True)
+    written = read.pair_of(read.open_run(f))
+    computed = read.pair_of(read.open_run(f), from_particles=True)
     assert written.source == "as written in /diagnostics"
     np.testing.assert_allclose(written.t, computed.t, atol=1e-12)
     for name in ("dx", "dy", "dr"):

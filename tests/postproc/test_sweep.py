@@ -9,6 +9,7 @@ import csv
 import itertools
 import math
 import os
+import re
 import shlex
 import stat
 import subprocess
@@ -18,8 +19,8 @@ from pathlib import Path
 import pytest
 import synthetic as syn
 
-import sweep
 from dkt_run import EXE, ROOT, mpi_env
+from dktlbm import sweep
 
 SWEEP = ROOT / "postproc" / "sweep.py"
 BASE_TEXT = """! a pair scene for the plan tests (never run)
@@ -257,6 +258,8 @@ def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path
     env = mpi_env()
     proc = sweep_cli("run", "--out", out, "--ranks", "1", env=env, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert re.search(r"^progress: 1 of 1 runs finished, elapsed \d+:\d\d:\d\d, ETA 0:00:00$",
+                     proc.stdout, flags=re.M), proc.stdout
     (row,) = read_csv(out / "runs.csv")
     h5 = out / row["id"] / "uhlmann.h5"
     assert h5.is_file() and "performance" in (out / row["id"] / "run.log").read_text()
@@ -264,6 +267,7 @@ def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path
 
     proc = sweep_cli("run", "--out", out, env=env, timeout=300)
     assert proc.returncode == 0 and "skip" in proc.stdout
+    assert "progress: 1 of 1 runs finished" in proc.stdout
     assert h5.stat().st_mtime_ns == stamp
 
     proc = sweep_cli("run", "--out", out, "--force", env=env, timeout=300)
@@ -356,3 +360,32 @@ def test_a_once_pair_out_of_line_at_the_end_is_not_settled(tmp_path: Path) -> No
         assert (v.pattern, v.settled) == (shape, False), v.why
         across = (0.3 + 0.02 * math.sin(2.0 * syn.T_END)) / syn.D1  # with the synthetic sway
         assert f"out of line at t_end: the centres are {across:.3g} D_1 apart across" in v.why
+
+
+def test_progress_counts_runs_and_estimates_from_the_mean_time() -> None:
+    """The progress line after each run: K of N, the time since the start, and an ETA of the
+    mean time of the runs that ran (skipped ones took none) times the runs left, over the
+    runs side by side (2 jobs, fewer at the end); 'unknown' before any run ran."""
+    now = [100.0]
+    progress = sweep.Progress(5, jobs=2, clock=lambda: now[0])
+    line = re.compile(r"^progress: (\d+) of 5 runs finished, elapsed (\d+):(\d\d):(\d\d), "
+                      r"ETA (unknown|(\d+):(\d\d):(\d\d))$")
+    steps = [(0.0, None), (40.0, 40.0), (20.0, 80.0), (3600.0, 60.0), (10.0, 50.0)]
+    ran: list[float] = []
+    for k, (wait, took) in enumerate(steps, start=1):
+        now[0] += wait
+        m = line.match(progress.finished(took))
+        assert m, progress.finished
+        if took is not None:
+            ran.append(took)
+        assert int(m.group(1)) == k
+        h, mi, se = (int(x) for x in m.group(2, 3, 4))
+        assert 3600 * h + 60 * mi + se == round(now[0] - 100.0)
+        left = 5 - k
+        if not ran:
+            assert m.group(5) == "unknown"
+            continue
+        eta = sum(ran) / len(ran) * left / max(1, min(2, left))
+        h, mi, se = (int(x) for x in m.group(6, 7, 8))
+        assert 3600 * h + 60 * mi + se == math.ceil(eta)
+    assert sweep.Progress(2, 1, step=3).finished(None).startswith("progress: step 3: 1 of 2 ")
