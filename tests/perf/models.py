@@ -19,7 +19,8 @@ collision.range (1, 2 spacings); everything else as the scene ships (25 spacings
   The paper reports repeated DKT.
 
 Each run lives in runs/models/<scene>/<variant>/ and is skipped when its result.json exists
-(tests/perf/tradeoff.py run_one). Prints the README's table and writes runs/models/models.csv.
+(tests/perf/tradeoff.py run_one). Prints the table of docs/accuracy.md and
+writes runs/models/models.csv.
 
     export PYTHONPATH=postproc:tests            # the dktlbm package and dkt_run, as ctest sets it
     python3 tests/perf/models.py                      # all 8 variants x 3 scenes, 2 ranks

@@ -1,18 +1,19 @@
 #!/usr/bin/env python3
-"""Accuracy cost of lbm.precision: the validation numbers of the README, one run per precision.
+"""Accuracy cost of lbm.precision: the validation numbers of docs/accuracy.md, one run
+per precision.
 
-Each row is measured exactly as the test or README row it comes from computes it, with that
-test's helpers (tests/dkt_run.py, tests/test_particles.py, tests/test_window.py), on the default
-in-place streaming:
+Each row is measured exactly as the test or docs/accuracy.md row it comes from computes it, with
+that test's helpers (tests/dkt_run.py, tests/test_particles.py, tests/test_window.py), on the
+default in-place streaming:
 
 - single: input/single.nml at 12.5 spacings per D (lbm.dx = 0.02, t_end = 0.75 s), Re_max =
-  rho_p D |U|max / mu (test_particles, README "single disk, Re_max");
+  rho_p D |U|max / mu (test_particles, docs/accuracy.md "single disk, Re_max");
 - case0_box: input/case0_box.nml at the paper's resolution, the start of the first kissing
   episode and the first time the trailing disk is below the leading one (test_dkt_validation);
 - case1: input/case1.nml as shipped (window, gamma = 2), the run's own /diagnostics pattern and
-  kissing episodes (README "Command A");
+  kissing episodes (docs/running.md "Command A");
 - window: one disk in the window (tau = 0.52, 16 D below, 15 D above) against the tall static
-  channel, the largest |dx| and |dy| in % of D (test_window, the README window table).
+  channel, the largest |dx| and |dy| in % of D (test_window, the window table of docs/accuracy.md).
 
 Field output is switched off (output.field_interval = 0): it does not change the particle
 series. Every run uses --ranks MPI ranks, one after another. A run whose `<name>.finished` and

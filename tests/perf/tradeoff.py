@@ -20,7 +20,7 @@ configuration runs on every scene asked for, with field output off:
 - uhlmann: input/uhlmann.nml to t = 0.3 s; the peak settling speed of each disk (published: the
   maxima of Uhlmann 2005, Fig. 6b, tests/refdata/uhlmann2005_dkt).
 
-The answers are computed with the functions of tests/perf/precision_accuracy.py (the README's
+The answers are computed with the functions of tests/perf/precision_accuracy.py (docs/accuracy.md's
 validation rows). Each run lives in runs/tradeoff/<scene>/<configuration>/; a run whose
 result.json exists is skipped (a run a guard stopped, e.g. the
 Mach limit at too few cells per diameter, is a result: its answers come from the series up to the
@@ -132,7 +132,7 @@ def answers(scene: str, out: Path) -> list[tuple[str, object]]:
         s = series(h5file)
         gap = s["y"][:, 0] - 0.25 - 0.25 * 0.25  # surface within D/4 of the bottom (D = 0.25)
         landed = s["t"][np.nonzero(gap <= 0.0)[0]]
-        # Re_max of the fall, as the README's run to 0.75 s: not the contact after landing
+        # Re_max of the fall, as the accuracy table's run to 0.75 s: not the contact after landing
         rows = answers_single(h5file, float(landed[0]) if landed.size else np.inf)
         rows.append(("single disk landing [s]", float(landed[0]) if landed.size else "none"))
         return rows
