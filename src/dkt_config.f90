@@ -162,6 +162,7 @@ module dkt_config
     real(wp) :: field_interval = 0.0_wp   !! s between field outputs; 0 = at the end only
     real(wp) :: series_interval = 0.0_wp  !! s between particle samples; 0 = every step
     logical :: overwrite = .false.        !! allow replacing an existing <dir>/<name>.h5
+    integer :: compress = 0               !! deflate level of field snapshots, 0 = none
   end type output_cfg_t
 
   !> The whole input of a run.
@@ -462,6 +463,9 @@ contains
                   'time between samples of the /particles series; 0 = every step', ge=0.0_wp)
     call add_logical(reg, 'output', 'overwrite', c%output%overwrite, &
                      'allow replacing an existing <dir>/<name>.h5')
+    call add_integer(reg, 'output', 'compress', c%output%compress, '-', 'deflate (gzip) '// &
+                     'level of the field snapshots, 1 fastest .. 9 smallest; 0 = uncompressed', &
+                     ge=0, le=9)
   end subroutine build_registry
 
   !> Defaults, then the namelist `text`, then the `overrides` ('group.key=value'), then

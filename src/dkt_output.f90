@@ -26,9 +26,12 @@ module dkt_output
             output_pair_report, output_close, output_fail, output_final, output_scheduled, &
             output_mark_finished
 
-  !> output fields; the particle index field only in a scene with particles
-  character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
-                                                   'vorticity', 'pressure ', 'particle ']
+  !> output fields and their units; in a scene with particles also the integer field
+  !! `particle` (written by io_write_fields), in this order
+  character(len=9), parameter :: field_names(5) = ['rho      ', 'ux       ', 'uy       ', &
+                                                   'vorticity', 'pressure ']
+  character(len=10), parameter :: field_units(5) = ['g/cm^3    ', 'cm/s      ', 'cm/s      ', &
+                                                    '1/s       ', 'g/(cm s^2)']
   !> the /particles series besides t, one column per particle
   character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
                                                     'omega ', 'fx    ', 'fy    ', 'torque']
@@ -62,9 +65,10 @@ contains
                      [character(len=11) :: 'particles', 'diagnostics'], &
                      [sim%particles_on, sim%pair_on], &
                      sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
-                     field_names, err)
+                     [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
                                        sim%restart_from//': '//err)
+      sim%io%compress = sim%cfg%output%compress
       sim%output_open = .true.
       call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
       if (len(err) > 0) call fatal_local(err)
@@ -80,6 +84,7 @@ contains
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
+    sim%io%compress = sim%cfg%output%compress
     sim%output_open = .true.
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)
@@ -383,14 +388,16 @@ contains
   end subroutine output_pair_report
 
   !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
-  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
+  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)); with particles the particle number of each node
+  !! and the disks (centre, velocity, angular velocity, radius) at this step.
   subroutine output_fields(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    real(wp), allocatable :: fld(:, :, :)
+    real(wp), allocatable :: fld(:, :, :), id(:, :), disks(:, :)
     real(wp) :: uc, y0
+    integer :: k
     associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
-      allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
+      allocate (fld(nx, nyl, 5))
       call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
       call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
       uc = lp%dx/lp%dt
@@ -402,10 +409,19 @@ contains
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
       sim%fields_step = n
       if (sim%particles_on) then
-        call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)
+        allocate (id(nx, nyl), disks(sim%parts%n, 6))
+        call particles_solid_field(sim%parts, sim%dom, id)
+        do k = 1, sim%parts%n
+          associate (p => sim%parts%p(k))
+            ! as the /particles series computes them, so both hold the same bits
+            disks(k, :) = [p%x*lp%dx, p%y*lp%dx + y0, p%u*lp%dx/lp%dt, p%v*lp%dx/lp%dt, &
+                           p%omega/lp%dt, p%r*lp%dx]
+          end associate
+        end do
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units, &
+                             solid=nint(id), disks=disks)
       else
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names(1:5), fld)
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units)
       end if
     end associate
   end subroutine output_fields

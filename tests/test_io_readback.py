@@ -281,20 +281,30 @@ def test_xdmf_names_existing_datasets_with_their_dims(runs, nranks, name):
         for grid, step in zip(grids, expected_steps, strict=True):
             t, offset = SNAPSHOTS[step]
             assert float(grid.find("Time").get("Value")) == t
-            topo = grid.find("Topology")
-            assert topo.get("TopologyType") == "2DCoRectMesh"
-            assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+            assert grid.get("CollectionType") == "Spatial"
+            fields = grid.find("Grid")
+            assert fields.get("Name") == "fields"
+            topo = fields.find("Topology")
+            assert topo.get("TopologyType") == "3DCoRectMesh"
+            assert [int(v) for v in topo.get("Dimensions").split()] == [1, NY, NX]
             geo = {
                 e.get("Name"): [float(v) for v in e.text.split()]
-                for e in grid.find("Geometry").findall("DataItem")
+                for e in fields.find("Geometry").findall("DataItem")
             }
-            # slowest index first: (y, x); nodes at cell centres, y shifted by the window
-            assert geo["Origin"] == [DX / 2 + offset, DX / 2]
-            assert geo["Spacing"] == [DX, DX]
-            attrs = grid.findall("Attribute")
-            assert sorted(a.get("Name") for a in attrs) == sorted(FIELDS)
+            # slowest index first: (z, y, x); nodes at cell centres, y shifted by the window
+            assert geo["Origin"] == [0.0, DX / 2 + offset, DX / 2]
+            assert geo["Spacing"] == [DX, DX, DX]
+            attrs = fields.findall("Attribute")
+            assert sorted(a.get("Name") for a in attrs) == sorted((*FIELDS, "velocity"))
             for attr in attrs:
                 assert attr.get("Center") == "Node"
+                if attr.get("Name") == "velocity":
+                    assert attr.get("AttributeType") == "Vector"
+                    join = attr.find("DataItem")
+                    assert join.get("Function") == "JOIN($0, $1, 0*$0)"
+                    parts = [e.text.strip() for e in join.findall("DataItem")]
+                    assert parts == [f"{name}.h5:/fields/{step:06d}/{c}" for c in ("ux", "uy")]
+                    continue
                 assert attr.get("AttributeType") == "Scalar"
                 item = attr.find("DataItem")
                 fname, dset = item.text.strip().split(":", 1)
@@ -302,5 +312,5 @@ def test_xdmf_names_existing_datasets_with_their_dims(runs, nranks, name):
                 assert (d / fname).exists()
                 assert dset in f, f"{dset} named by the XDMF is not in {fname}"
                 dims = tuple(int(v) for v in item.get("Dimensions").split())
-                assert f[dset].shape == dims
+                assert (1, *f[dset].shape) == dims
                 assert int(item.get("Precision")) == f[dset].dtype.itemsize

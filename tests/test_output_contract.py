@@ -211,23 +211,29 @@ def test_inlet_row_carries_the_parabolic_profile(h5) -> None:
 
 
 def test_xdmf_names_only_datasets_that_exist(result, h5) -> None:
-    """The .xdmf sidecar parses as XML; it has one grid per snapshot with its time, the (ny, nx)
-    topology, origin dx/2 and spacing dx; every HDF DataItem names an existing dataset of the
-    stated dimensions. Catches a stale or partial sidecar, x/y swapped, wrong paths."""
+    """The .xdmf sidecar parses as XML; it has one spatial collection per snapshot with its
+    time, holding the `fields` grid: a one-layer 3DCoRectMesh (1, ny, nx) in the X-Y plane,
+    origin (0, dx/2, dx/2) and spacing dx (z, y, x order); every HDF DataItem names an existing
+    dataset of the stated dimensions, with a leading 1 for the layer. Catches a stale or partial
+    sidecar, x/y swapped, wrong paths, a mesh ParaView lays in the Y-Z plane."""
     outdir = result[0]
     root = ET.parse(outdir / f"{NAME}.xdmf").getroot()
-    grids = [g for g in root.iter("Grid") if g.get("GridType") == "Uniform"]
-    assert len(grids) == len(h5["fields"]), "one grid per snapshot"
-    times = sorted(float(g.find("Time").get("Value")) for g in grids)
+    steps = [g for g in root.iter("Grid") if g.get("CollectionType") == "Spatial"]
+    assert len(steps) == len(h5["fields"]), "one collection per snapshot"
+    times = sorted(float(g.find("Time").get("Value")) for g in steps)
     assert times == pytest.approx([s * DT for s in expected_steps()], rel=1e-12, abs=1e-15)
     items = 0
-    for grid in grids:
+    for step in steps:
+        grids = [g.get("Name") for g in step.findall("Grid")]
+        assert grids == ["fields"], "a scene without particles has no particle grid"
+        grid = step.find("Grid")
         topo = grid.find("Topology")
-        assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+        assert topo.get("TopologyType") == "3DCoRectMesh"
+        assert [int(v) for v in topo.get("Dimensions").split()] == [1, NY, NX]
         geometry = grid.find("Geometry").iter("DataItem")
         geo = {d.get("Name"): [float(v) for v in d.text.split()] for d in geometry}
-        assert geo["Origin"] == pytest.approx([DX / 2, DX / 2], rel=1e-12)
-        assert geo["Spacing"] == pytest.approx([DX, DX], rel=1e-12)
+        assert geo["Origin"] == pytest.approx([0.0, DX / 2, DX / 2], rel=1e-12)
+        assert geo["Spacing"] == pytest.approx([DX, DX, DX], rel=1e-12)
         for item in grid.iter("DataItem"):
             if item.get("Format") != "HDF":
                 continue
@@ -237,8 +243,9 @@ def test_xdmf_names_only_datasets_that_exist(result, h5) -> None:
             with h5py.File(outdir / file, "r") as f:
                 assert path in f, item.text
                 dims = [int(v) for v in item.get("Dimensions").split()]
-                assert list(f[path].shape) == dims, item.text
-    assert items == len(FIELDS) * len(grids)
+                assert [1, *f[path].shape] == dims, item.text
+    # each field, and ux and uy once more for the joined velocity vector
+    assert items == (len(FIELDS) + 2) * len(steps)
 
 
 def test_log_copy_has_the_performance_line_of_stdout(result) -> None:
