@@ -17,7 +17,7 @@
 !> the same metadata (names, times, shapes); the field rows differ between ranks, and of series,
 !> tables and attributes only rank 0's values are stored.
 module dkt_io
-  use iso_c_binding, only: c_null_char, c_ptr, c_loc
+  use iso_c_binding, only: c_null_char, c_ptr, c_loc, c_int, c_size_t
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, mpi_wp
   use dkt_errors, only: fatal_local
@@ -37,11 +37,12 @@ module dkt_io
                   H5S_SELECT_SET_F, H5S_UNLIMITED_F, h5dcreate_f, h5dopen_f, h5dclose_f, &
                   h5dwrite_f, h5dget_space_f, h5dset_extent_f, h5acreate_f, h5awrite_f, &
                   h5aclose_f, h5aexists_f, h5adelete_f, h5tcopy_f, h5tset_size_f, &
-                  h5tset_strpad_f, h5tclose_f, H5T_NATIVE_CHARACTER, H5T_STR_NULLPAD_F, &
+                  h5tclose_f, H5T_NATIVE_CHARACTER, &
                   h5fopen_f, H5F_ACC_RDWR_F, h5gn_members_f, h5gget_obj_info_idx_f, &
                   H5G_DATASET_F, H5G_GROUP_F, h5ldelete_f, h5aopen_f, h5aread_f, &
                   H5F_ACC_RDONLY_F, h5dread_f, H5FD_MPIO_INDEPENDENT_F, h5pset_deflate_f, &
-                  h5dget_type_f, h5tget_class_f, h5tget_size_f, H5T_INTEGER_F
+                  h5dget_type_f, h5tget_class_f, h5tget_size_f, H5T_INTEGER_F, &
+                  h5tset_cset_f, H5T_CSET_UTF8_F
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
@@ -70,6 +71,7 @@ module dkt_io
     character(len=:), allocatable :: name  !! e.g. 'x'
     integer :: ndims = 1 !! 1 series, 2 table
     integer :: n = 0     !! rows held
+    character(len=:), allocatable :: units !! the dataset's `units` attribute, '' = none
     real(wp), allocatable :: rows(:, :) !! (columns, capacity)
   end type pending_t
 
@@ -119,6 +121,15 @@ module dkt_io
   integer :: n_open_files = 0
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
+
+  interface
+    !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1
+    integer(c_int) function h5tset_size_variable(type_id, size) bind(c, name='H5Tset_size')
+      import :: c_int, c_size_t, hid_t
+      integer(hid_t), value :: type_id
+      integer(c_size_t), value :: size
+    end function h5tset_size_variable
+  end interface
 
 contains
 
@@ -488,9 +499,9 @@ contains
   end subroutine io_reopen
 
   !> Write group /run: the configuration, provenance and one real attribute per lattice
-  !! parameter. Call once, with the same arguments on every rank.
+  !! parameter with its unit. Call once, with the same arguments on every rank.
   subroutine io_write_run(io, namelist_text, version, git_revision, nranks, compiler, flags, &
-                          names, values)
+                          names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: namelist_text !! the full configuration as namelist text
     character(len=*), intent(in) :: version       !! dktlbm version
@@ -500,12 +511,13 @@ contains
     character(len=*), intent(in) :: flags         !! compiler_options()
     character(len=*), intent(in) :: names(:)      !! lattice parameter names (dx, dt, tau, ...)
     real(wp), intent(in) :: values(:)             !! their values, in the units of dkt_config
+    character(len=*), intent(in) :: units(:)      !! their units, stored as <name>_units
     integer(hid_t) :: grp
     integer :: hdferr, k
 
     call require_open(io, 'io_write_run')
-    if (size(names) /= size(values)) call fatal_local('io_write_run: names and values differ '// &
-                                                      'in size')
+    if (size(names) /= size(values) .or. size(names) /= size(units)) &
+      call fatal_local('io_write_run: names, values and units differ in size')
     call h5gcreate_f(io%file_id, 'run', grp, hdferr)
     call check(hdferr, 'h5gcreate_f(/run)', io%path)
     call put_attr(io, grp, 'namelist', s=namelist_text)
@@ -516,6 +528,7 @@ contains
     call put_attr(io, grp, 'compiler_flags', s=flags)
     do k = 1, size(names)
       call put_attr(io, grp, trim(names(k)), r=values(k))
+      call put_attr(io, grp, trim(names(k))//'_units', s=trim(units(k)))
     end do
     call h5gclose_f(grp, hdferr)
     call check(hdferr, 'h5gclose_f(/run)', io%path)
@@ -682,16 +695,19 @@ contains
   !! (n_samples,)), created on first use, with the group. The values of rank 0 are written; the
   !! other ranks pass an array of the same size. Collective. The row is held in memory until
   !! io_flush, io_write_fields or io_close writes it (or the held rows fill their store).
-  subroutine io_write_series(io, group, names, values)
+  !! `units` (one per name) become the datasets' attribute `units` when they are created.
+  subroutine io_write_series(io, group, names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'diagnostics'
     character(len=*), intent(in) :: names(:) !! one dataset per name
     real(wp), intent(in) :: values(:)        !! the new row (rank 0's values are kept)
+    character(len=*), intent(in), optional :: units(:) !! e.g. 's', 'cm'
 
     call require_open(io, 'io_write_series')
     if (size(names) /= size(values)) call fatal_local('io_write_series: names and values '// &
                                                       'differ in size')
-    call hold_rows(io, group, names, reshape(values, [1, size(values)]), 1, 'io_write_series')
+    call hold_rows(io, group, names, reshape(values, [1, size(values)]), 1, 'io_write_series', &
+                   units)
   end subroutine io_write_series
 
   !> Append one sample to the extendible 2-D datasets /<group>/<names(k)>, created on first use
@@ -699,12 +715,13 @@ contains
   !! values(:, k) is the new row of names(k). The column count is fixed when a dataset is
   !! created. The values of rank 0 are written; the other ranks pass an array of the same
   !! shape. A group may hold series and tables side by side (/particles/t and /particles/x).
-  !! Collective; held in memory like io_write_series.
-  subroutine io_write_table(io, group, names, values)
+  !! Collective; held in memory like io_write_series, with `units` as there.
+  subroutine io_write_table(io, group, names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'particles'
     character(len=*), intent(in) :: names(:) !! one dataset per name, e.g. 'x', 'y', 'omega'
     real(wp), intent(in) :: values(:, :)     !! (ncols, size(names)), rank 0's are kept
+    character(len=*), intent(in), optional :: units(:) !! e.g. 'cm', 'cm/s'
     integer :: ext(4)
 
     call require_open(io, 'io_write_table')
@@ -719,7 +736,7 @@ contains
                                                        'values of different shapes for '// &
                                                        trim(group))
     end if
-    call hold_rows(io, group, names, values, 2, 'io_write_table')
+    call hold_rows(io, group, names, values, 2, 'io_write_table', units)
   end subroutine io_write_table
 
   !> Write the rows held for the extendible datasets (io_write_series, io_write_table) and
@@ -885,12 +902,13 @@ contains
   !! keeps the kind (series or table) and the column count of its first row. When a dataset's
   !! store is full, every held row is written (on every rank at the same call: the calls are
   !! collective, so the stores fill together).
-  subroutine hold_rows(io, group, names, values, ndims, caller)
+  subroutine hold_rows(io, group, names, values, ndims, caller, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group, names(:)
     real(wp), intent(in) :: values(:, :) !! (ncols, size(names)); ncols = 1 for a series
     integer, intent(in) :: ndims         !! 1 series, 2 table
     character(len=*), intent(in) :: caller
+    character(len=*), intent(in), optional :: units(:) !! of a dataset created from here
     type(pending_t), allocatable :: grown(:)
     integer :: k, idx, ncols
     logical :: full
@@ -912,6 +930,8 @@ contains
         io%pending(idx)%name = trim(names(k))
         io%pending(idx)%ndims = ndims
         io%pending(idx)%n = 0
+        io%pending(idx)%units = ''
+        if (present(units)) io%pending(idx)%units = trim(units(k))
         allocate (io%pending(idx)%rows(ncols, max(1, min(MAX_PENDING, PENDING_VALUES/ncols))))
       end if
       associate (p => io%pending(idx))
@@ -995,6 +1015,7 @@ contains
       call check(hdferr, 'h5pset_chunk_f', io%path)
       call h5dcreate_f(grp, p%name, io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
       call check(hdferr, 'h5dcreate_f('//what//')', io%path)
+      if (len(p%units) > 0) call put_attr(io, dset, 'units', s=p%units)
       call h5pclose_f(dcpl, hdferr)
       call check(hdferr, 'h5pclose_f', io%path)
       call h5sclose_f(fspace, hdferr)
@@ -1096,8 +1117,7 @@ contains
   end subroutine check
 
   !> Write the new scalar attribute `name` of object `loc`: a real(wp) r, an integer i or a string
-  !! s, whichever is present (one is). A string is fixed-length and null-padded, an empty one
-  !! stored as a single NUL (h5py: b'').
+  !! s, whichever is present (one is). A string is a variable-length UTF-8 string (h5py: str).
   subroutine put_attr(io, loc, name, r, i, s)
     type(io_t), intent(in) :: io
     integer(hid_t), intent(in) :: loc
@@ -1107,16 +1127,19 @@ contains
     character(len=*), intent(in), optional :: s
     integer(hid_t) :: atype, space, attr
     integer :: hdferr, e(3)
+    character(len=:), allocatable, target :: text
+    type(c_ptr), target :: ptr
 
     if (present(r)) then
       atype = io%real_type
     else if (present(i)) then
       atype = io%int_type
     else
+      ! the Fortran wrapper of H5Tset_size cannot pass H5T_VARIABLE, (size_t) -1
       call h5tcopy_f(H5T_NATIVE_CHARACTER, atype, e(1))
-      call h5tset_size_f(atype, int(max(1, len(s)), size_t), e(2))
-      call h5tset_strpad_f(atype, H5T_STR_NULLPAD_F, e(3))
-      call check(minval(e), 'h5tcopy_f/h5tset_size_f/h5tset_strpad_f('//name//')', io%path)
+      e(2) = min(0, int(h5tset_size_variable(atype, -1_c_size_t)))
+      call h5tset_cset_f(atype, H5T_CSET_UTF8_F, e(3))
+      call check(minval(e), 'h5tcopy_f/H5Tset_size/h5tset_cset_f('//name//')', io%path)
     end if
     call h5screate_f(H5S_SCALAR_F, space, hdferr)
     call check(hdferr, 'h5screate_f', io%path)
@@ -1126,10 +1149,10 @@ contains
       call h5awrite_f(attr, atype, r, one, hdferr)
     else if (present(i)) then
       call h5awrite_f(attr, atype, i, one, hdferr)
-    else if (len(s) > 0) then
-      call h5awrite_f(attr, atype, s, one, hdferr)
     else
-      call h5awrite_f(attr, atype, c_null_char, one, hdferr)
+      text = s//c_null_char
+      ptr = c_loc(text)
+      call h5awrite_f(attr, atype, c_loc(ptr), hdferr)
     end if
     call check(hdferr, 'h5awrite_f('//name//')', io%path)
     call h5aclose_f(attr, e(1))

@@ -138,8 +138,13 @@ def test_run_group_holds_configuration_provenance_and_parameters(runs, nranks):
         assert _text(attrs["compiler"]).strip()  # compiler_version(): never empty
         assert "compiler_flags" in attrs  # compiler_options() may be empty
         assert attrs["dx"] == DX
-        assert attrs["nx"] == NX
-        assert attrs["ny"] == NY
+        assert _text(attrs["dx_units"]) == "cm"
+        # integers as integers
+        assert attrs["nx"] == NX and attrs.get_id("nx").dtype.kind == "i"
+        assert attrs["ny"] == NY and attrs.get_id("ny").dtype.kind == "i"
+        assert attrs.get_id("ranks").dtype.kind == "i"
+        for name in ("namelist", "version", "git_revision", "compiler", "dx_units"):
+            assert h5py.check_string_dtype(attrs.get_id(name).dtype).length is None, name
 
 
 @pytest.mark.parametrize("nranks", RANKS)
@@ -184,12 +189,13 @@ def test_attributes_keep_rank0_value_and_type(runs, nranks):
     with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
         value, dtype = attr(f, "particles", "count")
         assert dtype.kind == "i" and value == NCOL  # 7 first, replaced by 3
+        # strings are variable-length UTF-8: h5py gives str
         value, dtype = attr(f, "particles/x", "unit")  # on a dataset
-        assert dtype.kind == "S" and value == b"cm"
+        assert h5py.check_string_dtype(dtype).encoding == "utf-8" and value == "cm"
         value, dtype = attr(f, "diagnostics", "pattern")
-        assert dtype.kind == "S" and value == b"repeated"
+        assert h5py.check_string_dtype(dtype).encoding == "utf-8" and value == "repeated"
         value, dtype = attr(f, "diagnostics", "note")
-        assert dtype.kind == "S" and value == b""
+        assert h5py.check_string_dtype(dtype).length is None and value == ""
         # both groups created by the attribute; the string 'tbd' replaced by a real
         assert isinstance(f["checks"], h5py.Group) and isinstance(f["checks/nested"], h5py.Group)
         value, dtype = attr(f, "checks/nested", "ratio")
