@@ -17,7 +17,7 @@ module dkt_output
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker
-  use dkt_registry, only: itoa
+  use dkt_registry, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
   implicit none
@@ -385,9 +385,9 @@ contains
         call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
                              [e%t_start(k), e%t_end(k), e%gap_min(k)*dx], ['s ', 's ', 'cm'])
       end do
-      write (line, '(a,f5.2,a,f6.2,a,i0,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
-        ', D_h/D_1 = ', dh, '; ', e%n, ' kissing episodes)'
-      call log_line(trim(line))
+      write (line, '(a,f5.2,a,f6.2,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
+        ', D_h/D_1 = ', dh, '; '
+      call log_line(trim(line)//' '//counted(e%n, 'kissing episode')//')')
       do k = 1, e%n
         write (line, '(a,i0,a,f8.4,a,f8.4,a,f7.3,a,f7.3,a,f7.4,a)') '  episode ', k, ': t = ', &
           e%t_start(k), ' .. ', e%t_end(k), ' s (t* = ', e%t_start(k)/sim%cfg%run%t_ref, &
