@@ -11,7 +11,7 @@ module dkt_config
   use dkt_store, only: PRECISION_NAMES
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
-                          allowed_text, origin_of, blame, quoted, fmt_real, itoa
+                          allowed_text, origin_of, blame, quoted, fmt_real, fmt_num, itoa
   use dkt_namelist, only: parse_namelist, apply_override
   implicit none
   private
@@ -162,6 +162,7 @@ module dkt_config
     real(wp) :: field_interval = 0.0_wp   !! s between field outputs; 0 = at the end only
     real(wp) :: series_interval = 0.0_wp  !! s between particle samples; 0 = every step
     logical :: overwrite = .false.        !! allow replacing an existing <dir>/<name>.h5
+    integer :: compress = 0               !! deflate level of field snapshots, 0 = none
   end type output_cfg_t
 
   !> The whole input of a run.
@@ -462,6 +463,9 @@ contains
                   'time between samples of the /particles series; 0 = every step', ge=0.0_wp)
     call add_logical(reg, 'output', 'overwrite', c%output%overwrite, &
                      'allow replacing an existing <dir>/<name>.h5')
+    call add_integer(reg, 'output', 'compress', c%output%compress, '-', 'deflate (gzip) '// &
+                     'level of the field snapshots, 1 fastest .. 9 smallest; 0 = uncompressed', &
+                     ge=0, le=9)
   end subroutine build_registry
 
   !> Defaults, then the namelist `text`, then the `overrides` ('group.key=value'), then
@@ -612,7 +616,7 @@ contains
       if (q%gamma > 0.0_wp) then
         if (p%count > 0) then
           err = blame(reg, 'particles.count pair.gamma', c%file)//': &pair gamma = '// &
-                fmt_real(q%gamma)//' and &particles count = '//itoa(p%count)//': a pair '// &
+                fmt_num(q%gamma)//' and &particles count = '//itoa(p%count)//': a pair '// &
                 'scene sets its two particles itself; allowed: count = 0 with gamma > 0, '// &
                 'or gamma = 0 to take the particles from &particles'
           return
@@ -635,7 +639,7 @@ contains
       if (c%lbm%cells_per_diameter > 0.0_wp) then
         if (p%count == 0) then
           err = blame(reg, 'lbm.cells_per_diameter particles.count', c%file)// &
-                ': &lbm cells_per_diameter = '//fmt_real(c%lbm%cells_per_diameter)// &
+                ': &lbm cells_per_diameter = '//fmt_num(c%lbm%cells_per_diameter)// &
                 ' in a scene without particles; allowed: 0 (set dx instead), or particles'
           return
         end if
@@ -673,16 +677,16 @@ contains
       real(wp) :: u, nu, tau, per_tau
       nu = c%fluid%viscosity/c%fluid%density
       call velocity_scale(c, u, source)
-      head = blame(reg, 'lbm.mach', c%file)//': &lbm mach = '//fmt_real(c%lbm%mach)
+      head = blame(reg, 'lbm.mach', c%file)//': &lbm mach = '//fmt_num(c%lbm%mach)
       if (.not. (u > 0.0_wp .and. ieee_is_finite(u))) then
-        err = head//' in a scene whose velocity scale is '//fmt_real(u)//' cm/s (largest: '// &
+        err = head//' in a scene whose velocity scale is '//fmt_num(u)//' cm/s (largest: '// &
               source//'): a Mach target needs a moving scene; allowed: lbm.mach = 0 (set '// &
               'lbm.tau instead), or a scene with an inlet, initial or body-force flow or '// &
               'moving particles'
         return
       end if
       if (c%lbm%mach > c%run%mach_limit) then
-        err = head//' is above &run mach_limit = '//fmt_real(c%run%mach_limit)// &
+        err = head//' is above &run mach_limit = '//fmt_num(c%run%mach_limit)// &
               ', at which the guard stops the run; allowed: 0 < mach <= mach_limit; lower '// &
               'lbm.mach'
         return
@@ -693,13 +697,13 @@ contains
       if (tau < TAU_MACH_MIN .or. tau > TAU_MAX .or. .not. ieee_is_finite(tau)) then
         ! tau - 1/2 ~ mach/dx: a tau too large comes down with a larger dx, and vice versa
         knob = dx_knob(c, larger=tau > TAU_MAX)
-        err = head//' needs tau = 1/2 + mach nu/(c_s U dx) = '//fmt_real(tau)// &
-              ' with the velocity scale U = '//fmt_real(u)//' cm/s (from '//source// &
-              '), dx = '//fmt_real(c%lbm%dx)//' cm and nu = '//fmt_real(nu)// &
-              ' cm^2/s; allowed: '//fmt_real(TAU_MACH_MIN)//' <= tau <= '// &
-              fmt_real(TAU_MAX)//', i.e. '// &
-              fmt_real((TAU_MACH_MIN - 0.5_wp)*per_tau)//' <= mach <= '// &
-              fmt_real((TAU_MAX - 0.5_wp)*per_tau)//' on this lattice; change lbm.mach, or '// &
+        err = head//' needs tau = 1/2 + mach nu/(c_s U dx) = '//fmt_num(tau)// &
+              ' with the velocity scale U = '//fmt_num(u)//' cm/s (from '//source// &
+              '), dx = '//fmt_num(c%lbm%dx)//' cm and nu = '//fmt_num(nu)// &
+              ' cm^2/s; allowed: '//fmt_num(TAU_MACH_MIN)//' <= tau <= '// &
+              fmt_num(TAU_MAX)//', i.e. '// &
+              fmt_num((TAU_MACH_MIN - 0.5_wp)*per_tau)//' <= mach <= '// &
+              fmt_num((TAU_MAX - 0.5_wp)*per_tau)//' on this lattice; change lbm.mach, or '// &
               knob//' (tau - 1/2 ~ 1/dx at a fixed mach), or set lbm.mach = 0 and use lbm.tau'
         return
       end if
@@ -810,15 +814,15 @@ contains
     integer :: k
     nu = c%fluid%viscosity/c%fluid%density
     best = abs(c%inlet%velocity)
-    s = '&inlet velocity = '//fmt_real(c%inlet%velocity)//' cm/s'
+    s = '&inlet velocity = '//fmt_num(c%inlet%velocity)//' cm/s'
     if (c%initial%velocity > best) then
       best = c%initial%velocity
-      s = '&initial velocity = '//fmt_real(c%initial%velocity)//' cm/s'
+      s = '&initial velocity = '//fmt_num(c%initial%velocity)//' cm/s'
     end if
     u = norm2(c%fluid%body_force)*c%domain%width**2/(8.0_wp*nu)
     if (u > best) then
       best = u
-      s = '&fluid body_force (Poiseuille peak '//fmt_real(u)//' cm/s across &domain width)'
+      s = '&fluid body_force (Poiseuille peak '//fmt_num(u)//' cm/s across &domain width)'
     end if
     associate (p => c%particles)
       do k = 1, p%count
@@ -826,13 +830,13 @@ contains
         if (u > best) then
           best = u
           s = '&particles u('//itoa(k)//'), v('//itoa(k)//') of particle '//itoa(k)// &
-              ' ('//fmt_real(u)//' cm/s)'
+              ' ('//fmt_num(u)//' cm/s)'
         end if
         if (p%motion(k) /= 'free') cycle
         u = sqrt(0.5_wp*pi*p%diameter(k)*abs(p%density(k)/c%fluid%density - 1.0_wp)*p%gravity)
         if (u > best) then
           best = u
-          s = 'the settling speed scale '//fmt_real(u)//' cm/s of particle '//itoa(k)// &
+          s = 'the settling speed scale '//fmt_num(u)//' cm/s of particle '//itoa(k)// &
               ' (&particles diameter('//itoa(k)//'), density('//itoa(k)//'), gravity)'
         end if
       end do
@@ -975,8 +979,8 @@ contains
       else if (dt_log < log10(DT_MIN) .or. dt_log > log10(DT_MAX)) then
         err = head//'nu = '//power(nu_log)//' cm^2/s, and with '//dx_text()// &
               ' and &lbm tau = '//val('lbm', 'tau')//' the time step dt = (tau - 1/2)/3 '// &
-              'dx^2/nu = '//power(dt_log)//' s; allowed: '//fmt_real(DT_MIN)//' s <= dt <= '// &
-              fmt_real(DT_MAX)//' s; check &fluid viscosity (g/(cm s)) and density (g/cm^3) '// &
+              'dx^2/nu = '//power(dt_log)//' s; allowed: '//fmt_num(DT_MIN)//' s <= dt <= '// &
+              fmt_num(DT_MAX)//' s; check &fluid viscosity (g/(cm s)) and density (g/cm^3) '// &
               '(water: 0.01 and 1.0), then '
         ! a smaller dx makes dt smaller (dt ~ dx^2)
         if (dt_log > log10(DT_MAX)) then
@@ -998,15 +1002,15 @@ contains
       n_log = log10(c%run%t_end) - log10(dt)
       if (n_log < log10(0.5_wp)) then
         err = from(STEP_KEYS)//': &run t_end = '//val('run', 't_end')//' s gives 0 time '// &
-              'steps: dt = '//fmt_real(dt)//' s (from '//dx_text()//', &lbm tau = '// &
+              'steps: dt = '//fmt_num(dt)//' s (from '//dx_text()//', &lbm tau = '// &
               val('lbm', 'tau')//' and &fluid viscosity/density); allowed: t_end >= dt/2 = '// &
-              fmt_real(0.5_wp*dt)//' s, or &run steps >= 1'
+              fmt_num(0.5_wp*dt)//' s, or &run steps >= 1'
       else if (n_log > log10(MAX_STEPS)) then
         err = from(STEP_KEYS)//': &run t_end = '//val('run', 't_end')//' s gives '// &
-              power(n_log)//' time steps of dt = '//fmt_real(dt)//' s (from '// &
+              power(n_log)//' time steps of dt = '//fmt_num(dt)//' s (from '// &
               dx_text()//', &lbm tau = '//val('lbm', 'tau')//' and &fluid viscosity/'// &
               'density); allowed: at most '//itoa(nint(MAX_STEPS))//' steps, i.e. t_end <= '// &
-              fmt_real(round6(MAX_STEPS*dt, down=.true.))//' s; make t_end smaller, or dt '// &
+              fmt_num(round6(MAX_STEPS*dt, down=.true.))//' s; make t_end smaller, or dt '// &
               'larger: raise lbm.tau, or '//dx_knob(c, larger=.true.)
       end if
     end subroutine check_steps
@@ -1016,7 +1020,7 @@ contains
       real(wp), intent(in) :: x
       character(len=:), allocatable :: s
       if (abs(x) < 300.0_wp) then
-        s = fmt_real(round6(10.0_wp**x))
+        s = fmt_num(round6(10.0_wp**x))
       else
         s = 'about 1.0e'//itoa(nint(x))
       end if
@@ -1031,8 +1035,8 @@ contains
       integer :: k
       if (.not. (ieee_is_finite(lp%u_scale_lb) .and. ieee_is_finite(lp%mach))) then
         err = src('density', 'fluid')//': the expected velocity scale is '// &
-              fmt_real(lp%u_scale_lb)//' in lattice units, from '//velocity_scale_source(c)// &
-              ' with dt = '//fmt_real(lp%dt)//' s and dx = '//fmt_real(lp%dx)// &
+              fmt_num(lp%u_scale_lb)//' in lattice units, from '//velocity_scale_source(c)// &
+              ' with dt = '//fmt_num(lp%dt)//' s and dx = '//fmt_num(lp%dx)// &
               ' cm; allowed: a finite velocity scale; change the key named'
         return
       end if
@@ -1043,13 +1047,13 @@ contains
           speed = hypot(p%u(k), p%v(k))
           if (speed*lp%dt/lp%dx <= c%run%particle_speed_limit) cycle
           err = from('particles.v particles.u run.particle_speed_limit lbm.dx lbm.tau')// &
-                ': '//item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                ': '//item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_num(p%v(k))// &
                 ': particle '//itoa(k)//' starts at '// &
-                fmt_real(round6(speed*lp%dt/lp%dx))//' lattice spacings per step (dx = '// &
-                fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)//' s), above &run '// &
+                fmt_num(round6(speed*lp%dt/lp%dx))//' lattice spacings per step (dx = '// &
+                fmt_num(lp%dx)//' cm, dt = '//fmt_num(lp%dt)//' s), above &run '// &
                 'particle_speed_limit = '//val('run', 'particle_speed_limit')//'; allowed: '// &
                 'a speed up to '// &
-                fmt_real(round6(c%run%particle_speed_limit*lp%dx/lp%dt, down=.true.))// &
+                fmt_num(round6(c%run%particle_speed_limit*lp%dx/lp%dt, down=.true.))// &
                 ' cm/s; lower u('//itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
                 ' or lower &lbm tau (both shrink dt/dx)'
           return
@@ -1059,13 +1063,13 @@ contains
           speed = hypot(p%u(k), p%v(k))
           if (speed <= u_max) cycle
           err = from('particles.v particles.u run.mach_limit lbm.dx lbm.tau')//': '// &
-                item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
+                item('u', k, p%u(k))//', v('//itoa(k)//') = '//fmt_num(p%v(k))// &
                 ' with motion('//itoa(k)//') = ''prescribed'': particle '//itoa(k)// &
-                ' moves at '//fmt_real(speed)//' cm/s, Mach '// &
-                fmt_real(round6(speed*lp%dt/lp%dx/sqrt(cs2)))// &
-                ' on this lattice (dx = '//fmt_real(lp%dx)//' cm, dt = '//fmt_real(lp%dt)// &
+                ' moves at '//fmt_num(speed)//' cm/s, Mach '// &
+                fmt_num(round6(speed*lp%dt/lp%dx/sqrt(cs2)))// &
+                ' on this lattice (dx = '//fmt_num(lp%dx)//' cm, dt = '//fmt_num(lp%dt)// &
                 ' s), above &run mach_limit = '//val('run', 'mach_limit')//'; allowed: a '// &
-                'speed up to '//fmt_real(round6(u_max, down=.true.))//' cm/s; lower u('// &
+                'speed up to '//fmt_num(round6(u_max, down=.true.))//' cm/s; lower u('// &
                 itoa(k)//') and v('//itoa(k)//'), or '//dx_knob(c)// &
                 ' or lower &lbm tau (both shrink dt)'
           return
@@ -1083,8 +1087,8 @@ contains
       character(len=:), allocatable :: where, advice
       nu = c%fluid%viscosity/c%fluid%density
       re_max = 0.0_wp
-      where = 'outside the measured tau range '//fmt_real(MAP_TAU(1))//' to '// &
-              fmt_real(MAP_TAU(size(MAP_TAU)))
+      where = 'outside the measured tau range '//fmt_num(MAP_TAU(1))//' to '// &
+              fmt_num(MAP_TAU(size(MAP_TAU)))
       advice = 'choose lbm.tau within that range'
       do i = 1, size(MAP_TAU) - 1
         if (c%lbm%tau >= MAP_TAU(i) .and. c%lbm%tau <= MAP_TAU(i + 1)) then
@@ -1104,13 +1108,13 @@ contains
           re_p = u*p%diameter(k)/nu
           if (re_p/n_d <= re_max) cycle
           if (len(where) == 0) where = 'above the measured stable Re_p/N = '// &
-                                       fmt_real(round6(re_max))//' at this tau, i.e. Re_p = '// &
-                                       fmt_real(round6(re_max*n_d))//' on this lattice'
+                                       fmt_num(round6(re_max))//' at this tau, i.e. Re_p = '// &
+                                       fmt_num(round6(re_max*n_d))//' on this lattice'
           if (len(warnings) > 0) warnings = warnings//NL
           warnings = warnings//src('tau', 'lbm')//': &lbm tau = '//val('lbm', 'tau')// &
                      ' and particle '//itoa(k)//'''s expected Reynolds number Re_p = U D/nu = '// &
-                     fmt_real(round6(re_p))//' (U = '//fmt_real(round6(u))//' cm/s, '// &
-                     fmt_real(round6(n_d))//' spacings per diameter) lie '//where// &
+                     fmt_num(round6(re_p))//' (U = '//fmt_num(round6(u))//' cm/s, '// &
+                     fmt_num(round6(n_d))//' spacings per diameter) lie '//where// &
                      ' (docs/stability.md, docs/stability_map.csv); the run may be stopped by '// &
                      'a guard; '//advice
           return
@@ -1133,8 +1137,8 @@ contains
           if (p%motion(k) /= 'prescribed') cycle
           head = from('particles.v particles.u particles.x particles.y run.t_end run.steps')// &
                  ': &particles motion('//itoa(k)//') = ''prescribed'' with u('//itoa(k)// &
-                 ') = '//fmt_real(p%u(k))//', v('//itoa(k)//') = '//fmt_real(p%v(k))// &
-                 ' cm/s from (x, y) = ('//fmt_real(p%x(k))//', '//fmt_real(p%y(k))//') cm: '
+                 ') = '//fmt_num(p%u(k))//', v('//itoa(k)//') = '//fmt_num(p%v(k))// &
+                 ' cm/s from (x, y) = ('//fmt_num(p%x(k))//', '//fmt_num(p%y(k))//') cm: '
           what = ''
           t_hit = huge(1.0_wp)
           call leaves(k, p%x(k), p%u(k), d%width, d%sides == 'wall', d%sides == 'wall', 'x', &
@@ -1149,11 +1153,11 @@ contains
             call meets(k, m, what, t_hit)
           end do
           if (len(what) > 0) then
-            err = head//what//' at t = '//fmt_real(round6(t_hit))//' s, before the run '// &
-                  'ends at t = '//fmt_real(round6(t_run))//' s (&run t_end/steps); allowed: '// &
+            err = head//what//' at t = '//fmt_num(round6(t_hit))//' s, before the run '// &
+                  'ends at t = '//fmt_num(round6(t_run))//' s (&run t_end/steps); allowed: '// &
                   'a path that stays clear until the end; change u('//itoa(k)//'), v('// &
                   itoa(k)//'), x('//itoa(k)//'), y('//itoa(k)//'), or end the run before '// &
-                  't = '//fmt_real(round6(t_hit))//' s'
+                  't = '//fmt_num(round6(t_hit))//' s'
             return
           end if
         end do
@@ -1188,7 +1192,7 @@ contains
         if (t <= t_run .and. t < t_hit) then
           t_hit = t
           what = 'its '//trim(merge('surface', 'centre ', hi_wall))//' reaches the '// &
-                 hi_name//' at '//key//' = '//fmt_real(length)
+                 hi_name//' at '//key//' = '//fmt_num(length)
         end if
       end if
     end subroutine leaves
@@ -1219,7 +1223,7 @@ contains
           what = 'it runs into particle '//itoa(m)//' (motion('//itoa(m)//') = '// &
                  quoted(trim(p%motion(m)))//': the centres come within (diameter('//itoa(k)// &
                  ') + diameter('//itoa(m)//'))/2 = '// &
-                 fmt_real(0.5_wp*(p%diameter(k) + p%diameter(m)))//' cm)'
+                 fmt_num(0.5_wp*(p%diameter(k) + p%diameter(m)))//' cm)'
         end if
       end associate
     end subroutine meets
@@ -1229,7 +1233,7 @@ contains
       character(len=:), allocatable :: s
       if (c%lbm%cells_per_diameter > 0.0_wp) then
         s = '&lbm cells_per_diameter = '//val('lbm', 'cells_per_diameter')//' (dx = '// &
-            fmt_real(c%lbm%dx)//' cm)'
+            fmt_num(c%lbm%dx)//' cm)'
       else
         s = '&lbm dx = '//val('lbm', 'dx')
       end if
@@ -1265,13 +1269,14 @@ contains
       both = from('lbm.dx domain.'//key//' lbm.cells_per_diameter')//': &domain '//key//' = '// &
              val('domain', key)//' and &lbm dx = '//val('lbm', 'dx')//' give '
       if (r >= MAX_CELLS) then
-        err = both//axis//' = '//key//'/dx = '//fmt_real(r)//' cells; allowed: fewer than '// &
-              fmt_real(MAX_CELLS)//'; make dx larger'
+        err = both//axis//' = '//key//'/dx = '//fmt_num(r)//' cells; allowed: fewer than '// &
+              fmt_num(MAX_CELLS)//'; make dx larger'
       else if (nint(r) < 3) then
         err = both//axis//' = nint('//key//'/dx) = '//itoa(nint(r))//' cells; allowed: '// &
               axis//' >= 3; make dx smaller, e.g. dx = '//fmt_real(length/3.0_wp)
       else if (abs(r - anint(r)) > WHOLE_TOL) then
-        err = both//key//'/dx = '//fmt_real(r)//' cells, not a whole number; choose dx = '// &
+        ! the suggested dx is to be copied: all its digits, so that it gives whole cells
+        err = both//key//'/dx = '//fmt_num(r)//' cells, not a whole number; choose dx = '// &
               key//'/n, e.g. dx = '//fmt_real(length/anint(r))//' ('//itoa(nint(r))//' cells)'
       end if
     end subroutine check_cells
@@ -1282,7 +1287,7 @@ contains
       integer, intent(in) :: k
       real(wp), intent(in) :: x
       character(len=:), allocatable :: s
-      s = '&particles '//key//'('//itoa(k)//') = '//fmt_real(x)
+      s = '&particles '//key//'('//itoa(k)//') = '//fmt_num(x)
     end function item
 
     !> Particle k at t = 0: a fixed particle has no velocity, its centre lies in the channel
@@ -1322,19 +1327,19 @@ contains
         cells = p%diameter(k)/c%lbm%dx
         both = from('lbm.dx particles.diameter lbm.cells_per_diameter')//': '// &
                item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
-               ' give '//fmt_real(cells)//' cells per diameter'
+               ' give '//fmt_num(cells)//' cells per diameter'
         if (cells < MIN_CELLS_PER_D - WHOLE_TOL) then
           err = both//'; allowed: diameter('//itoa(k)//')/dx >= '// &
                 itoa(nint(MIN_CELLS_PER_D))//', i.e. dx <= diameter('//itoa(k)//')/'// &
                 itoa(nint(MIN_CELLS_PER_D))//' = '// &
-                fmt_real(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
+                fmt_num(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
         else if (cells < GOOD_CELLS_PER_D - WHOLE_TOL) then
           if (len(warnings) > 0) warnings = warnings//NL
           warnings = warnings//both//', fewer than '//itoa(nint(GOOD_CELLS_PER_D))// &
                      ': the force on particle '//itoa(k)//' and its motion will be '// &
                      'inaccurate; dx <= diameter('//itoa(k)//')/'// &
                      itoa(nint(GOOD_CELLS_PER_D))//' = '// &
-                     fmt_real(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
+                     fmt_num(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
                      itoa(nint(GOOD_CELLS_PER_D))
         end if
         call check_wall_gap(k)
@@ -1364,9 +1369,9 @@ contains
           if (.not. wall(j) .or. gap(j) >= c%lbm%dx*(1.0_wp - CONTACT_TOL)) cycle
           if (len(warnings) > 0) warnings = warnings//NL
           warnings = warnings//from('particles.x particles.y lbm.dx')//': particle '// &
-                     itoa(k)//' starts with its surface '//fmt_real(round6(gap(j)/c%lbm%dx))// &
+                     itoa(k)//' starts with its surface '//fmt_num(round6(gap(j)/c%lbm%dx))// &
                      ' lattice spacings from the wall at '//trim(NAMES(j))//' (dx = '// &
-                     fmt_real(c%lbm%dx)//' cm); a disk started half a spacing from a wall '// &
+                     fmt_num(c%lbm%dx)//' cm); a disk started half a spacing from a wall '// &
                      'was measured to be stopped by the Mach guard in the gap''s flow '// &
                      '(docs/stability.md); start it at least dx from the wall'
           return
@@ -1392,22 +1397,22 @@ contains
                   'domain.lower domain.upper')//': '//item(key, k, pos)//' with '// &
              item('diameter', k, c%particles%diameter(k))//', &domain '//dim//' = '// &
              val('domain', dim)//' and '//ends//': '
-      allowed = fmt_real(lo)//trim(merge(' < ', ' <=', lo_wall))//' '//key//'('//itoa(k)// &
-                ')'//trim(merge(' < ', ' <=', hi_wall))//' '//fmt_real(hi)
+      allowed = fmt_num(lo)//trim(merge(' < ', ' <=', lo_wall))//' '//key//'('//itoa(k)// &
+                ')'//trim(merge(' < ', ' <=', hi_wall))//' '//fmt_num(hi)
       if (lo >= hi) then
         err = head//'particle '//itoa(k)//' is not narrower than the channel between its '// &
               'walls; allowed: diameter('//itoa(k)//') < '//dim//' = '//val('domain', dim)
         return
       else if (pos < 0.0_wp .or. pos > length) then
         what = 'the centre of particle '//itoa(k)//' is outside the channel, 0 <= '//key// &
-               ' <= '//fmt_real(length)
+               ' <= '//fmt_num(length)
       else if (pos <= lo) then
         what = 'particle '//itoa(k)//' overlaps the wall at '//key//' = 0 at t = 0 (gap '// &
-               key//' - diameter/2 = '//fmt_real(pos - r)//' cm; touching counts as overlap)'
+               key//' - diameter/2 = '//fmt_num(pos - r)//' cm; touching counts as overlap)'
       else
-        what = 'particle '//itoa(k)//' overlaps the wall at '//key//' = '//fmt_real(length)// &
+        what = 'particle '//itoa(k)//' overlaps the wall at '//key//' = '//fmt_num(length)// &
                ' at t = 0 (gap '//dim//' - '//key//' - diameter/2 = '// &
-               fmt_real(length - pos - r)//' cm; touching counts as overlap)'
+               fmt_num(length - pos - r)//' cm; touching counts as overlap)'
       end if
       err = head//what//'; allowed: '//allowed//' (the centre at least one radius from a wall)'
     end subroutine check_position
@@ -1430,10 +1435,10 @@ contains
               err = from('particles.y particles.x particles.diameter')// &
                     ': &particles: particles '//itoa(k)//' and '//itoa(m)//' overlap at t = 0: '// &
                     pair('x', k, m)//', '//pair('y', k, m)//', '// &
-                    pair('diameter', k, m)//': the distance of the centres '//fmt_real(dist)// &
+                    pair('diameter', k, m)//': the distance of the centres '//fmt_num(dist)// &
                     ' cm is less than the contact distance (diameter('//itoa(k)// &
-                    ') + diameter('//itoa(m)//'))/2 = '//fmt_real(contact)//' cm; allowed: '// &
-                    'a distance of at least '//fmt_real(contact)//' cm; move them apart'
+                    ') + diameter('//itoa(m)//'))/2 = '//fmt_num(contact)//' cm; allowed: '// &
+                    'a distance of at least '//fmt_num(contact)//' cm; move them apart'
               return
             end if
           end do
@@ -1452,10 +1457,10 @@ contains
           err = from('pair.dh pair.d1 pair.gamma collision.range lbm.dx '// &
                      'lbm.cells_per_diameter')//': &pair dh = '//val('pair', 'dh')// &
                 ' gives D_h = '// &
-                fmt_real(q%dh*q%d1)//' cm with d1 = '//val('pair', 'd1')//', gamma = '// &
+                fmt_num(q%dh*q%d1)//' cm with d1 = '//val('pair', 'd1')//', gamma = '// &
                 val('pair', 'gamma')//': the pair starts within the contact distance '// &
-                '(D_1 + D_2)/2 + collision.range dx = '//fmt_real(contact)//' cm; allowed: '// &
-                'dh > '//fmt_real(round_up(dh_min))
+                '(D_1 + D_2)/2 + collision.range dx = '//fmt_num(contact)//' cm; allowed: '// &
+                'dh > '//fmt_num(round_up(dh_min))
       end associate
     end subroutine check_pair
 
@@ -1474,12 +1479,12 @@ contains
             err = from('window.above window.margin particles.y particles.diameter pair.dh '// &
                        'pair.y_upper pair.d1 pair.gamma')//': &window above = '// &
                   val('window', 'above')// &
-                  ' D_1 (D_1 = '//fmt_real(d1)//' cm) cannot hold the particles: the window '// &
-                  'spans y = '//fmt_real(y_lo)//' .. '//fmt_real(y_hi)//' cm, but particle '// &
-                  itoa(k)//' (y = '//fmt_real(p%y(k))//', diameter '// &
-                  fmt_real(p%diameter(k))//') with the margin of '//val('window', 'margin')// &
-                  ' D_1 reaches '//fmt_real(top)//' cm; allowed: above >= '// &
-                  fmt_real(round_up(need))
+                  ' D_1 (D_1 = '//fmt_num(d1)//' cm) cannot hold the particles: the window '// &
+                  'spans y = '//fmt_num(y_lo)//' .. '//fmt_num(y_hi)//' cm, but particle '// &
+                  itoa(k)//' (y = '//fmt_num(p%y(k))//', diameter '// &
+                  fmt_num(p%diameter(k))//') with the margin of '//val('window', 'margin')// &
+                  ' D_1 reaches '//fmt_num(top)//' cm; allowed: above >= '// &
+                  fmt_num(round_up(need))
             return
           end if
         end do
@@ -1498,12 +1503,12 @@ contains
                      'lbm.cells_per_diameter')//': &diagnostics release_cells = '// &
                 val('diagnostics', 'release_cells')//' and release_d1 = '// &
                 val('diagnostics', 'release_d1')//' give a release gap of '// &
-                fmt_real(release)//' spacings, not above the entry gap of '// &
-                fmt_real(enter)//' spacings from enter_cells = '// &
+                fmt_num(release)//' spacings, not above the entry gap of '// &
+                fmt_num(enter)//' spacings from enter_cells = '// &
                 val('diagnostics', 'enter_cells')//' and enter_d1 = '// &
-                val('diagnostics', 'enter_d1')//' (D_1 = '//fmt_real(d1)// &
-                ' spacings); allowed: release_cells > '//fmt_real(enter)//' or release_d1 > '// &
-                fmt_real(enter/d1)//', or a smaller entry gap (enter_cells, enter_d1)'
+                val('diagnostics', 'enter_d1')//' (D_1 = '//fmt_num(d1)// &
+                ' spacings); allowed: release_cells > '//fmt_num(enter)//' or release_d1 > '// &
+                fmt_num(enter/d1)//', or a smaller entry gap (enter_cells, enter_d1)'
       end associate
     end subroutine check_thresholds
 
@@ -1524,10 +1529,10 @@ contains
         if (t_run >= t_need) return
         if (c%run%steps == 0) t_run = c%run%t_end ! as typed, not steps x dt
         if (len(warnings) > 0) warnings = warnings//NL
-        warnings = warnings//src('t_end', 'run')//': &run t_end = '//fmt_real(t_run)// &
+        warnings = warnings//src('t_end', 'run')//': &run t_end = '//fmt_num(t_run)// &
                    ' s may be too short to classify the DKT pattern of particles 1 and 2: '// &
-                   'closing their gap of '//fmt_real(gap)//' cm at a tenth of the settling '// &
-                   'velocity scale and separating takes about '//fmt_real(t_need)// &
+                   'closing their gap of '//fmt_num(gap)//' cm at a tenth of the settling '// &
+                   'velocity scale and separating takes about '//fmt_num(t_need)// &
                    ' s; a pattern ''never'' or ''once'' may only mean the run stopped early'
       end associate
     end subroutine check_duration
@@ -1573,7 +1578,7 @@ contains
       case default
         a = c%particles%diameter(k); b = c%particles%diameter(m)
       end select
-      s = key//'('//itoa(k)//') = '//fmt_real(a)//' and '//key//'('//itoa(m)//') = '//fmt_real(b)
+      s = key//'('//itoa(k)//') = '//fmt_num(a)//' and '//key//'('//itoa(m)//') = '//fmt_num(b)
     end function pair
   end subroutine validate
 

@@ -83,10 +83,13 @@ contains
     dom%periodic_y = periodic_y
     smallest = ny/dom%nranks
     if (smallest < min_rows) then
-      write (msg, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'the channel has ', ny, ' rows; on ', &
-        dom%nranks, ' ranks a slab would hold ', smallest, ' but needs at least ', min_rows, &
-        '; run on at most ', max_ranks_for(ny, min_rows), &
-        ' ranks, or refine lbm.dx / lengthen domain.height'
+      ! (a slab has more than one row, so only the rank counts can be 1)
+      write (msg, '(a,i0,a,i0,a,a,i0,a,i0,a,i0,a,a)') 'the channel has ', ny, ' rows; on ', &
+        dom%nranks, trim(merge(' rank ', ' ranks', dom%nranks == 1)), ' a slab would hold ', &
+        smallest, ' but needs at least ', min_rows, '; run on at most ', &
+        max_ranks_for(ny, min_rows), trim(merge(' rank ', ' ranks', &
+                                                max_ranks_for(ny, min_rows) == 1)), &
+        ', or refine lbm.dx / lengthen domain.height'
       err = trim(msg)
       return
     end if

@@ -18,14 +18,15 @@ contains
 
   !> Stop every rank for an error that all ranks detected together (input validation is
   !! deterministic on every rank): rank 0 prints, all ranks finalise MPI and exit non-zero.
-  !! Input quoted in `text` is shown with its non-printing bytes escaped (printable).
+  !! Input quoted in `text` is shown with its non-printing bytes escaped (printable); the line
+  !! breaks of `text` stay line breaks.
   subroutine fatal_all(text, code)
     character(len=*), intent(in) :: text  !! what is wrong and what to change
     integer, intent(in), optional :: code !! exit status (default EXIT_INPUT)
     integer :: status
     logical :: running
     character(len=:), allocatable :: msg
-    msg = printable(text)
+    msg = printable_lines(text)
     status = EXIT_INPUT
     if (present(code)) status = code
     if (this_rank(running) == 0) then
@@ -48,7 +49,7 @@ contains
     integer :: status
     logical :: running
     character(len=:), allocatable :: msg
-    msg = printable(text)
+    msg = printable_lines(text)
     status = EXIT_RUNTIME
     if (present(code)) status = code
     flush (output_unit)
@@ -71,6 +72,22 @@ contains
     end if
     if (running) call log_record('warning: '//msg)
   end subroutine warn
+
+  !> `text` with the non-printing bytes of each line escaped, the line breaks kept.
+  function printable_lines(text) result(msg)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: msg
+    integer :: a, b
+    msg = ''
+    a = 1
+    do
+      b = index(text(a:), new_line('a'))
+      if (b == 0) exit
+      msg = msg//printable(text(a:a + b - 2))//new_line('a')
+      a = a + b
+    end do
+    msg = msg//printable(text(a:))
+  end function printable_lines
 
   !> This process's rank in MPI_COMM_WORLD (0 when MPI is not running); running tells whether
   !! MPI is initialised and not yet finalised.

@@ -17,12 +17,14 @@
 !> the same metadata (names, times, shapes); the field rows differ between ranks, and of series,
 !> tables and attributes only rank 0's values are stored.
 module dkt_io
-  use iso_c_binding, only: c_null_char
+  use iso_c_binding, only: c_null_char, c_ptr, c_loc, c_int, c_size_t
+  use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, mpi_wp
   use dkt_errors, only: fatal_local
   use dkt_xdmf, only: xdmf_t, xdmf_init, xdmf_add_frame, xdmf_write, xdmf_delete, xdmf_free
-  use mpi_f08, only: MPI_Comm, MPI_INFO_NULL, MPI_LOGICAL, MPI_INTEGER, MPI_CHARACTER, MPI_LOR, &
-                     MPI_SUM, MPI_MAX, MPI_MIN, MPI_Comm_rank, MPI_Bcast, MPI_Allreduce
+  use mpi_f08, only: MPI_Comm, MPI_INFO_NULL, MPI_IN_PLACE, MPI_LOGICAL, MPI_INTEGER, &
+                     MPI_CHARACTER, MPI_LOR, MPI_SUM, MPI_MAX, MPI_MIN, MPI_Comm_rank, &
+                     MPI_Bcast, MPI_Allreduce
   use hdf5, only: hid_t, hsize_t, size_t, h5open_f, h5close_f, h5kind_to_type, H5_REAL_KIND, &
                   H5_INTEGER_KIND, h5fcreate_f, h5fclose_f, h5fflush_f, H5F_ACC_EXCL_F, &
                   H5F_ACC_TRUNC_F, H5F_SCOPE_GLOBAL_F, h5pcreate_f, h5pclose_f, &
@@ -35,10 +37,12 @@ module dkt_io
                   H5S_SELECT_SET_F, H5S_UNLIMITED_F, h5dcreate_f, h5dopen_f, h5dclose_f, &
                   h5dwrite_f, h5dget_space_f, h5dset_extent_f, h5acreate_f, h5awrite_f, &
                   h5aclose_f, h5aexists_f, h5adelete_f, h5tcopy_f, h5tset_size_f, &
-                  h5tset_strpad_f, h5tclose_f, H5T_NATIVE_CHARACTER, H5T_STR_NULLPAD_F, &
+                  h5tclose_f, H5T_NATIVE_CHARACTER, &
                   h5fopen_f, H5F_ACC_RDWR_F, h5gn_members_f, h5gget_obj_info_idx_f, &
                   H5G_DATASET_F, H5G_GROUP_F, h5ldelete_f, h5aopen_f, h5aread_f, &
-                  H5F_ACC_RDONLY_F, h5dread_f, H5FD_MPIO_INDEPENDENT_F
+                  H5F_ACC_RDONLY_F, h5dread_f, H5FD_MPIO_INDEPENDENT_F, h5pset_deflate_f, &
+                  h5dget_type_f, h5tget_class_f, h5tget_size_f, H5T_INTEGER_F, &
+                  h5tset_cset_f, H5T_CSET_UTF8_F
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
@@ -67,6 +71,7 @@ module dkt_io
     character(len=:), allocatable :: name  !! e.g. 'x'
     integer :: ndims = 1 !! 1 series, 2 table
     integer :: n = 0     !! rows held
+    character(len=:), allocatable :: units !! the dataset's `units` attribute, '' = none
     real(wp), allocatable :: rows(:, :) !! (columns, capacity)
   end type pending_t
 
@@ -87,6 +92,7 @@ module dkt_io
     integer :: y0 = 0  !! rows below this rank's slab
     integer :: nyl = 0 !! rows of this rank's slab (may be 0)
     real(wp) :: dx = 0.0_wp !! cm, lattice spacing
+    integer :: compress = 0 !! deflate level of the field datasets, 0 = none
     character(len=:), allocatable :: name      !! file base name, no extension
     character(len=:), allocatable :: path      !! <dir>/<name>.h5
     character(len=:), allocatable :: xdmf_path !! <dir>/<name>.xdmf
@@ -115,6 +121,15 @@ module dkt_io
   integer :: n_open_files = 0
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
+
+  interface
+    !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1
+    integer(c_int) function h5tset_size_variable(type_id, size) bind(c, name='H5Tset_size')
+      import :: c_int, c_size_t, hid_t
+      integer(hid_t), value :: type_id
+      integer(c_size_t), value :: size
+    end function h5tset_size_variable
+  end interface
 
 contains
 
@@ -364,9 +379,10 @@ contains
     !> Remove the field groups after `step`; list the others in the sidecar, in step order.
     subroutine cut_fields()
       character(len=64), allocatable :: names(:), fnames(:)
-      integer, allocatable :: kinds(:), fkinds(:), steps(:)
+      integer, allocatable :: kinds(:), fkinds(:), steps(:), bytes(:)
       real(wp) :: t, offset
-      integer :: j, s, ios
+      integer :: j, s, ios, m, np
+      character(len=:), allocatable :: g
       call members('fields', names, kinds)
       allocate (steps(size(names)))
       do j = 1, size(names)
@@ -384,12 +400,64 @@ contains
       do j = 1, size(names)
         s = steps(j)
         if (s < 0) cycle
-        call read_attr('fields/'//trim(names(j)), 'time', t)
-        call read_attr('fields/'//trim(names(j)), 'window_offset', offset)
-        call members('fields/'//trim(names(j)), fnames, fkinds)
-        call xdmf_add_frame(io%xdmf, s, t, offset, field_group(s), ordered(fnames))
+        g = 'fields/'//trim(names(j))
+        call read_attr(g, 'time', t)
+        call read_attr(g, 'window_offset', offset)
+        call members(g, fnames, fkinds)
+        ! the fields are the datasets; a sub-group `particles` holds the disks (files written
+        ! before version 0.2.0 have none)
+        np = 0
+        if (any(fkinds == H5G_GROUP_F .and. fnames == 'particles')) &
+          np = dataset_length(g//'/particles/radius')
+        fnames = ordered(pack(fnames, fkinds == H5G_DATASET_F))
+        allocate (bytes(size(fnames)))
+        do m = 1, size(fnames)
+          bytes(m) = value_bytes(g//'/'//trim(fnames(m)))
+        end do
+        call xdmf_add_frame(io%xdmf, s, t, offset, field_group(s), fnames, bytes, np)
+        deallocate (bytes)
       end do
     end subroutine cut_fields
+
+    !> Bytes per value of dataset `path`, negative for an integer type (as xdmf_add_frame).
+    integer function value_bytes(path) result(b)
+      character(len=*), intent(in) :: path
+      integer(hid_t) :: dset, dtype
+      integer(size_t) :: size
+      integer :: tclass
+      call h5dopen_f(io%file_id, path, dset, hdferr)
+      call check(hdferr, 'h5dopen_f('//path//')', io%path)
+      call h5dget_type_f(dset, dtype, hdferr)
+      call check(hdferr, 'h5dget_type_f('//path//')', io%path)
+      call h5tget_class_f(dtype, tclass, hdferr)
+      call check(hdferr, 'h5tget_class_f('//path//')', io%path)
+      call h5tget_size_f(dtype, size, hdferr)
+      call check(hdferr, 'h5tget_size_f('//path//')', io%path)
+      b = int(size)
+      if (tclass == H5T_INTEGER_F) b = -b
+      call h5tclose_f(dtype, hdferr)
+      call check(hdferr, 'h5tclose_f('//path//')', io%path)
+      call h5dclose_f(dset, hdferr)
+      call check(hdferr, 'h5dclose_f('//path//')', io%path)
+    end function value_bytes
+
+    !> Length of the 1-D dataset `path`.
+    integer function dataset_length(path) result(n)
+      character(len=*), intent(in) :: path
+      integer(hid_t) :: dset, space
+      integer(hsize_t) :: dims(1), maxdims(1)
+      call h5dopen_f(io%file_id, path, dset, hdferr)
+      call check(hdferr, 'h5dopen_f('//path//')', io%path)
+      call h5dget_space_f(dset, space, hdferr)
+      call check(hdferr, 'h5dget_space_f('//path//')', io%path)
+      call h5sget_simple_extent_dims_f(space, dims, maxdims, hdferr)
+      call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//path//')', io%path)
+      n = int(dims(1))
+      call h5sclose_f(space, hdferr)
+      call check(hdferr, 'h5sclose_f', io%path)
+      call h5dclose_f(dset, hdferr)
+      call check(hdferr, 'h5dclose_f('//path//')', io%path)
+    end function dataset_length
 
     !> `found` in the order of field_order, names not in it last
     function ordered(found) result(out)
@@ -431,9 +499,9 @@ contains
   end subroutine io_reopen
 
   !> Write group /run: the configuration, provenance and one real attribute per lattice
-  !! parameter. Call once, with the same arguments on every rank.
+  !! parameter with its unit. Call once, with the same arguments on every rank.
   subroutine io_write_run(io, namelist_text, version, git_revision, nranks, compiler, flags, &
-                          names, values)
+                          names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: namelist_text !! the full configuration as namelist text
     character(len=*), intent(in) :: version       !! dktlbm version
@@ -443,12 +511,13 @@ contains
     character(len=*), intent(in) :: flags         !! compiler_options()
     character(len=*), intent(in) :: names(:)      !! lattice parameter names (dx, dt, tau, ...)
     real(wp), intent(in) :: values(:)             !! their values, in the units of dkt_config
+    character(len=*), intent(in) :: units(:)      !! their units, stored as <name>_units
     integer(hid_t) :: grp
     integer :: hdferr, k
 
     call require_open(io, 'io_write_run')
-    if (size(names) /= size(values)) call fatal_local('io_write_run: names and values differ '// &
-                                                      'in size')
+    if (size(names) /= size(values) .or. size(names) /= size(units)) &
+      call fatal_local('io_write_run: names, values and units differ in size')
     call h5gcreate_f(io%file_id, 'run', grp, hdferr)
     call check(hdferr, 'h5gcreate_f(/run)', io%path)
     call put_attr(io, grp, 'namelist', s=namelist_text)
@@ -459,6 +528,7 @@ contains
     call put_attr(io, grp, 'compiler_flags', s=flags)
     do k = 1, size(names)
       call put_attr(io, grp, trim(names(k)), r=values(k))
+      call put_attr(io, grp, trim(names(k))//'_units', s=trim(units(k)))
     end do
     call h5gclose_f(grp, hdferr)
     call check(hdferr, 'h5gclose_f(/run)', io%path)
@@ -466,20 +536,31 @@ contains
     call check(hdferr, 'h5fflush_f', io%path)
   end subroutine io_write_run
 
-  !> Write one snapshot as group /fields/NNNNNN (one dataset per name), flush the file and
-  !! rewrite the XDMF sidecar, so a run that stops later still leaves readable output.
-  subroutine io_write_fields(io, step, t, offset, names, fields)
+  !> Write one snapshot as group /fields/NNNNNN (one dataset per name, each with its `units`),
+  !! flush the file and rewrite the XDMF sidecar, so a run that stops later still leaves
+  !! readable output. With `solid`, the integer dataset `particle` (the particle number at each
+  !! node, 0 in the fluid; int16 while the numbers fit, else int32). With `disks`, the sub-group
+  !! `particles` holding rank 0's disks: position and velocity (h5py shape (n, 3), z = 0),
+  !! radius, omega and id (1 .. n). Deflated when io%compress > 0. Collective.
+  subroutine io_write_fields(io, step, t, offset, names, fields, units, solid, disks)
     type(io_t), intent(inout) :: io
     integer, intent(in) :: step             !! time step, >= 0, not written before
     real(wp), intent(in) :: t               !! s, simulated time
     real(wp), intent(in) :: offset          !! cm, y of the window bottom (0 for a fixed domain)
     character(len=*), intent(in) :: names(:) !! dataset names, e.g. 'rho', 'ux'
-    real(wp), intent(in), contiguous :: fields(:, :, :) !! (nx, nyl, size(names)), this slab
-    integer(hid_t) :: grp, fspace, dset
+    real(wp), intent(in), contiguous, target :: fields(:, :, :) !! (nx, nyl, size(names))
+    character(len=*), intent(in), optional :: units(:) !! unit of each field, e.g. 'cm/s'
+    integer, intent(in), optional :: solid(:, :)     !! (nx, nyl): particle number, 0 = fluid
+    !> (n, 6): x, y (cm), u, v (cm/s), omega (1/s), radius (cm) of each disk
+    real(wp), intent(in), optional :: disks(:, :)
+    integer(hid_t) :: grp
     integer(hsize_t) :: gdims(2), start(2), count(2)
-    integer :: hdferr, k
+    integer :: hdferr, k, np, nf, biggest
+    integer, allocatable :: bytes(:)
     logical :: exists
-    character(len=:), allocatable :: gname
+    character(len=:), allocatable :: gname, unit
+    character(len=64), allocatable :: listed(:)
+    real(wp), target :: none(1)
 
     call require_open(io, 'io_write_fields')
     call flush_pending(io)
@@ -498,46 +579,135 @@ contains
     call h5gcreate_f(io%file_id, gname, grp, hdferr)
     call check(hdferr, 'h5gcreate_f('//gname//')', io%path)
     call put_attr(io, grp, 'time', r=t)
+    call put_attr(io, grp, 'time_units', s='s')
     call put_attr(io, grp, 'step', i=step)
     call put_attr(io, grp, 'window_offset', r=offset)
+    call put_attr(io, grp, 'window_offset_units', s='cm')
 
     gdims = [integer(hsize_t) :: io%nx, io%ny]
     start = [integer(hsize_t) :: 0, io%y0]
     count = [integer(hsize_t) :: io%nx, io%nyl]
-    do k = 1, size(names)
-      call h5screate_simple_f(2, gdims, fspace, hdferr)
-      call check(hdferr, 'h5screate_simple_f', io%path)
-      call h5dcreate_f(grp, trim(names(k)), io%real_type, fspace, dset, hdferr)
-      call check(hdferr, 'h5dcreate_f('//gname//'/'//trim(names(k))//')', io%path)
-      call h5sclose_f(fspace, hdferr)
-      call check(hdferr, 'h5sclose_f', io%path)
-      call write_block(io, dset, start, count, fields(:, :, k), gname//'/'//trim(names(k)))
-      call h5dclose_f(dset, hdferr)
-      call check(hdferr, 'h5dclose_f', io%path)
+    nf = size(names)
+    allocate (listed(nf + 1), bytes(nf + 1))
+    do k = 1, nf
+      listed(k) = names(k)
+      bytes(k) = storage_size(1.0_wp)/8
+      unit = ''
+      if (present(units)) unit = trim(units(k))
+      if (io%nyl > 0) then
+        call put_dataset(io, grp, trim(names(k)), io%real_type, gdims, start, count, &
+                         c_loc(fields(1, 1, k)), unit, chunked=.true.)
+      else
+        call put_dataset(io, grp, trim(names(k)), io%real_type, gdims, start, count, &
+                         c_loc(none), unit, chunked=.true.)
+      end if
     end do
+    if (present(solid)) then
+      nf = nf + 1
+      listed(nf) = 'particle'
+      if (size(solid, 1) /= io%nx .or. size(solid, 2) /= io%nyl) &
+        call fatal_local('io_write_fields: solid must have shape (nx, nyl)')
+      biggest = 0
+      if (size(solid) > 0) biggest = maxval(solid)
+      call MPI_Allreduce(MPI_IN_PLACE, biggest, 1, MPI_INTEGER, MPI_MAX, io%comm)
+      if (biggest <= huge(1_int16)) then
+        bytes(nf) = -2
+        call put_solid(h5kind_to_type(int16, H5_INTEGER_KIND), .true.)
+      else
+        bytes(nf) = -(storage_size(1)/8)
+        call put_solid(io%int_type, .false.)
+      end if
+    end if
+    np = 0
+    if (present(disks)) then
+      np = size(disks, 1)
+      if (size(disks, 2) /= 6) call fatal_local('io_write_fields: disks must have shape (n, 6)')
+      if (np > 0) call put_disks()
+    end if
     call h5gclose_f(grp, hdferr)
     call check(hdferr, 'h5gclose_f('//gname//')', io%path)
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
 
-    call xdmf_add_frame(io%xdmf, step, t, offset, gname, names)
+    call xdmf_add_frame(io%xdmf, step, t, offset, gname, listed(1:nf), bytes(1:nf), np)
     if (io%rank == 0) call xdmf_write(io%xdmf)
+  contains
+    !> The particle numbers as int16 (`short`) or default integers, in a buffer of the type
+    !! written, so that HDF5 converts nothing (a conversion would end collective writes).
+    subroutine put_solid(htype, short)
+      integer(hid_t), intent(in) :: htype
+      logical, intent(in) :: short
+      integer(int16), allocatable, target :: i2(:, :)
+      integer, allocatable, target :: i4(:, :)
+      if (short) then
+        allocate (i2(io%nx, max(1, io%nyl)))
+        i2 = 0_int16
+        i2(:, 1:io%nyl) = int(solid, int16)
+        call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i2), '1', &
+                         chunked=.true.)
+      else
+        allocate (i4(io%nx, max(1, io%nyl)))
+        i4 = 0
+        i4(:, 1:io%nyl) = solid
+        call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i4), '1', &
+                         chunked=.true.)
+      end if
+    end subroutine put_solid
+
+    !> The disks as rank 0 has them (the particle state is the same on every rank).
+    subroutine put_disks()
+      integer(hid_t) :: pgrp
+      real(wp), allocatable, target :: xyz(:, :), uvw(:, :), col(:, :)
+      integer, allocatable, target :: ids(:)
+      integer(hsize_t) :: d2(2), d1(1), c2(2), c1(1), z2(2), z1(1)
+      integer :: j
+      allocate (xyz(3, np), uvw(3, np), col(np, 2), ids(np))
+      xyz = 0.0_wp
+      uvw = 0.0_wp
+      xyz(1:2, :) = transpose(disks(:, 1:2))
+      uvw(1:2, :) = transpose(disks(:, 3:4))
+      col(:, 1) = disks(:, 6)
+      col(:, 2) = disks(:, 5)
+      ids = [(j, j=1, np)]
+      d2 = [integer(hsize_t) :: 3, np]
+      d1 = [integer(hsize_t) :: np]
+      z2 = 0
+      z1 = 0
+      c2 = merge(d2, z2, io%rank == 0)
+      c1 = merge(d1, z1, io%rank == 0)
+      call h5gcreate_f(grp, 'particles', pgrp, hdferr)
+      call check(hdferr, 'h5gcreate_f('//gname//'/particles)', io%path)
+      call put_dataset(io, pgrp, 'position', io%real_type, d2, z2, c2, c_loc(xyz), 'cm', &
+                       chunked=.false.)
+      call put_dataset(io, pgrp, 'velocity', io%real_type, d2, z2, c2, c_loc(uvw), 'cm/s', &
+                       chunked=.false.)
+      call put_dataset(io, pgrp, 'radius', io%real_type, d1, z1, c1, c_loc(col(1, 1)), 'cm', &
+                       chunked=.false.)
+      call put_dataset(io, pgrp, 'omega', io%real_type, d1, z1, c1, c_loc(col(1, 2)), '1/s', &
+                       chunked=.false.)
+      call put_dataset(io, pgrp, 'id', io%int_type, d1, z1, c1, c_loc(ids), '1', chunked=.false.)
+      call h5gclose_f(pgrp, hdferr)
+      call check(hdferr, 'h5gclose_f('//gname//'/particles)', io%path)
+    end subroutine put_disks
   end subroutine io_write_fields
 
   !> Append one row to the extendible 1-D datasets /<group>/<names(k)> (h5py shape
   !! (n_samples,)), created on first use, with the group. The values of rank 0 are written; the
   !! other ranks pass an array of the same size. Collective. The row is held in memory until
   !! io_flush, io_write_fields or io_close writes it (or the held rows fill their store).
-  subroutine io_write_series(io, group, names, values)
+  !! `units` (one per name) become the datasets' attribute `units` when they are created.
+  subroutine io_write_series(io, group, names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'diagnostics'
     character(len=*), intent(in) :: names(:) !! one dataset per name
     real(wp), intent(in) :: values(:)        !! the new row (rank 0's values are kept)
+    character(len=*), intent(in), optional :: units(:) !! e.g. 's', 'cm'
 
     call require_open(io, 'io_write_series')
     if (size(names) /= size(values)) call fatal_local('io_write_series: names and values '// &
                                                       'differ in size')
-    call hold_rows(io, group, names, reshape(values, [1, size(values)]), 1, 'io_write_series')
+    call hold_rows(io, group, names, reshape(values, [1, size(values)]), 1, 'io_write_series', &
+                   units)
   end subroutine io_write_series
 
   !> Append one sample to the extendible 2-D datasets /<group>/<names(k)>, created on first use
@@ -545,12 +715,13 @@ contains
   !! values(:, k) is the new row of names(k). The column count is fixed when a dataset is
   !! created. The values of rank 0 are written; the other ranks pass an array of the same
   !! shape. A group may hold series and tables side by side (/particles/t and /particles/x).
-  !! Collective; held in memory like io_write_series.
-  subroutine io_write_table(io, group, names, values)
+  !! Collective; held in memory like io_write_series, with `units` as there.
+  subroutine io_write_table(io, group, names, values, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group    !! group path under /, e.g. 'particles'
     character(len=*), intent(in) :: names(:) !! one dataset per name, e.g. 'x', 'y', 'omega'
     real(wp), intent(in) :: values(:, :)     !! (ncols, size(names)), rank 0's are kept
+    character(len=*), intent(in), optional :: units(:) !! e.g. 'cm', 'cm/s'
     integer :: ext(4)
 
     call require_open(io, 'io_write_table')
@@ -565,7 +736,7 @@ contains
                                                        'values of different shapes for '// &
                                                        trim(group))
     end if
-    call hold_rows(io, group, names, values, 2, 'io_write_table')
+    call hold_rows(io, group, names, values, 2, 'io_write_table', units)
   end subroutine io_write_table
 
   !> Write the rows held for the extendible datasets (io_write_series, io_write_table) and
@@ -731,12 +902,13 @@ contains
   !! keeps the kind (series or table) and the column count of its first row. When a dataset's
   !! store is full, every held row is written (on every rank at the same call: the calls are
   !! collective, so the stores fill together).
-  subroutine hold_rows(io, group, names, values, ndims, caller)
+  subroutine hold_rows(io, group, names, values, ndims, caller, units)
     type(io_t), intent(inout) :: io
     character(len=*), intent(in) :: group, names(:)
     real(wp), intent(in) :: values(:, :) !! (ncols, size(names)); ncols = 1 for a series
     integer, intent(in) :: ndims         !! 1 series, 2 table
     character(len=*), intent(in) :: caller
+    character(len=*), intent(in), optional :: units(:) !! of a dataset created from here
     type(pending_t), allocatable :: grown(:)
     integer :: k, idx, ncols
     logical :: full
@@ -758,6 +930,8 @@ contains
         io%pending(idx)%name = trim(names(k))
         io%pending(idx)%ndims = ndims
         io%pending(idx)%n = 0
+        io%pending(idx)%units = ''
+        if (present(units)) io%pending(idx)%units = trim(units(k))
         allocate (io%pending(idx)%rows(ncols, max(1, min(MAX_PENDING, PENDING_VALUES/ncols))))
       end if
       associate (p => io%pending(idx))
@@ -841,6 +1015,7 @@ contains
       call check(hdferr, 'h5pset_chunk_f', io%path)
       call h5dcreate_f(grp, p%name, io%real_type, fspace, dset, hdferr, dcpl_id=dcpl)
       call check(hdferr, 'h5dcreate_f('//what//')', io%path)
+      if (len(p%units) > 0) call put_attr(io, dset, 'units', s=p%units)
       call h5pclose_f(dcpl, hdferr)
       call check(hdferr, 'h5pclose_f', io%path)
       call h5sclose_f(fspace, hdferr)
@@ -942,8 +1117,7 @@ contains
   end subroutine check
 
   !> Write the new scalar attribute `name` of object `loc`: a real(wp) r, an integer i or a string
-  !! s, whichever is present (one is). A string is fixed-length and null-padded, an empty one
-  !! stored as a single NUL (h5py: b'').
+  !! s, whichever is present (one is). A string is a variable-length UTF-8 string (h5py: str).
   subroutine put_attr(io, loc, name, r, i, s)
     type(io_t), intent(in) :: io
     integer(hid_t), intent(in) :: loc
@@ -953,16 +1127,19 @@ contains
     character(len=*), intent(in), optional :: s
     integer(hid_t) :: atype, space, attr
     integer :: hdferr, e(3)
+    character(len=:), allocatable, target :: text
+    type(c_ptr), target :: ptr
 
     if (present(r)) then
       atype = io%real_type
     else if (present(i)) then
       atype = io%int_type
     else
+      ! the Fortran wrapper of H5Tset_size cannot pass H5T_VARIABLE, (size_t) -1
       call h5tcopy_f(H5T_NATIVE_CHARACTER, atype, e(1))
-      call h5tset_size_f(atype, int(max(1, len(s)), size_t), e(2))
-      call h5tset_strpad_f(atype, H5T_STR_NULLPAD_F, e(3))
-      call check(minval(e), 'h5tcopy_f/h5tset_size_f/h5tset_strpad_f('//name//')', io%path)
+      e(2) = min(0, int(h5tset_size_variable(atype, -1_c_size_t)))
+      call h5tset_cset_f(atype, H5T_CSET_UTF8_F, e(3))
+      call check(minval(e), 'h5tcopy_f/H5Tset_size/h5tset_cset_f('//name//')', io%path)
     end if
     call h5screate_f(H5S_SCALAR_F, space, hdferr)
     call check(hdferr, 'h5screate_f', io%path)
@@ -972,10 +1149,10 @@ contains
       call h5awrite_f(attr, atype, r, one, hdferr)
     else if (present(i)) then
       call h5awrite_f(attr, atype, i, one, hdferr)
-    else if (len(s) > 0) then
-      call h5awrite_f(attr, atype, s, one, hdferr)
     else
-      call h5awrite_f(attr, atype, c_null_char, one, hdferr)
+      text = s//c_null_char
+      ptr = c_loc(text)
+      call h5awrite_f(attr, atype, c_loc(ptr), hdferr)
     end if
     call check(hdferr, 'h5awrite_f('//name//')', io%path)
     call h5aclose_f(attr, e(1))
@@ -1023,6 +1200,66 @@ contains
     call h5sclose_f(fspace, e(2))
     call check(min(e(1), e(2)), 'h5sclose_f('//what//')', io%path)
   end subroutine write_block
+
+  !> Create dataset `name` of type `htype` and dimensions `dims` (Fortran order) in `loc`, with
+  !! the string attribute `units` unless that is '', and write this rank's block (start, count)
+  !! from `buf` (product(count) values of type `htype`, first index fastest) collectively; an
+  !! empty block takes part with nothing selected. A `chunked` dataset is deflated at level
+  !! io%compress when that is > 0 (parallel HDF5 writes filtered datasets collectively only,
+  !! as here).
+  subroutine put_dataset(io, loc, name, htype, dims, start, count, buf, units, chunked)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: loc, htype
+    character(len=*), intent(in) :: name, units
+    integer(hsize_t), intent(in) :: dims(:), start(:), count(:)
+    type(c_ptr), intent(in) :: buf
+    logical, intent(in) :: chunked
+    integer(hid_t) :: fspace, mspace, dcpl, dset
+    integer(hsize_t) :: chunk(size(dims)), last
+    integer :: hdferr, e(3)
+    real(wp), target :: empty(1)
+
+    call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+    call check(hdferr, 'h5pcreate_f(dataset create)', io%path)
+    if (chunked .and. io%compress > 0) then
+      ! whole rows, about 64 Ki values a chunk: large enough to compress well, small enough
+      ! that the ranks share the work of a snapshot
+      last = dims(size(dims))
+      chunk = dims
+      chunk(size(dims)) = max(1_hsize_t, min(last, 65536_hsize_t/max(1_hsize_t, dims(1))))
+      call h5pset_chunk_f(dcpl, size(dims), chunk, e(1))
+      call h5pset_deflate_f(dcpl, io%compress, e(2))
+      call check(min(e(1), e(2)), 'h5pset_chunk_f/h5pset_deflate_f('//name//')', io%path)
+    end if
+    call h5screate_simple_f(size(dims), dims, fspace, hdferr)
+    call check(hdferr, 'h5screate_simple_f', io%path)
+    call h5dcreate_f(loc, name, htype, fspace, dset, hdferr, dcpl_id=dcpl)
+    call check(hdferr, 'h5dcreate_f('//name//')', io%path)
+    call h5pclose_f(dcpl, hdferr)
+    call check(hdferr, 'h5pclose_f(dataset create)', io%path)
+    if (product(count) > 0) then
+      call h5sselect_hyperslab_f(fspace, H5S_SELECT_SET_F, start, count, hdferr)
+      call check(hdferr, 'h5sselect_hyperslab_f('//name//')', io%path)
+      call h5screate_simple_f(size(count), count, mspace, hdferr)
+      call check(hdferr, 'h5screate_simple_f', io%path)
+      call h5dwrite_f(dset, htype, buf, hdferr, mem_space_id=mspace, file_space_id=fspace, &
+                      xfer_prp=io%dxpl)
+    else
+      call h5sselect_none_f(fspace, e(1))
+      call h5screate_simple_f(1, one, mspace, e(2))
+      call h5sselect_none_f(mspace, e(3))
+      call check(minval(e), 'h5sselect_none_f('//name//')', io%path)
+      call h5dwrite_f(dset, htype, c_loc(empty), hdferr, mem_space_id=mspace, &
+                      file_space_id=fspace, xfer_prp=io%dxpl)
+    end if
+    call check(hdferr, 'h5dwrite_f('//name//')', io%path)
+    call h5sclose_f(mspace, e(1))
+    call h5sclose_f(fspace, e(2))
+    call check(min(e(1), e(2)), 'h5sclose_f('//name//')', io%path)
+    if (len(units) > 0) call put_attr(io, dset, 'units', s=units)
+    call h5dclose_f(dset, hdferr)
+    call check(hdferr, 'h5dclose_f('//name//')', io%path)
+  end subroutine put_dataset
 
   ! ----------------------------------------------------------------- plain files (checkpoints)
 

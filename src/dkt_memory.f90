@@ -9,7 +9,7 @@ module dkt_memory
   use dkt_errors, only: fatal_all
   use dkt_config, only: config_t, lattice_params_t, largest_diameter
   use dkt_domain, only: domain_t
-  use dkt_registry, only: fmt_real
+  use dkt_registry, only: fmt_real, counted
   use dkt_store, only: lattice_bytes
   implicit none
   private
@@ -85,8 +85,8 @@ contains
     end if
     need = real(node_ranks, wp)*sum(bytes)
     if (limit < 0.0_wp .or. need <= limit) return
-    write (msg, '(a,i0,a,i0,a,i0,a)') ' for ', lp%nx, ' x ', lp%ny, &
-      ' cells, times ', node_ranks, ' ranks on a node = '
+    write (msg, '(a,i0,a,i0,a)') ' for ', lp%nx, ' x ', lp%ny, &
+      ' cells, times '//counted(node_ranks, 'rank')//' on a node = '
     call fatal_all(trim(cfg%file)//': the run needs '//gib_text(sum(bytes)/GIB, up=.true.)// &
                    ' GiB per rank (lattices '//gib_text(bytes(1)/GIB)//' GiB, particle '// &
                    'arrays '//gib_text(bytes(2)/GIB)//' GiB, output buffers '// &

@@ -13,11 +13,11 @@ module dkt_output
   use dkt_particles, only: particles_solid_field
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
-  use dkt_io, only: io_open, io_write_run, io_write_fields, io_close, io_write_series, &
+  use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker
-  use dkt_registry, only: itoa
+  use dkt_registry, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
   implicit none
@@ -26,12 +26,19 @@ module dkt_output
             output_pair_report, output_close, output_fail, output_final, output_scheduled, &
             output_mark_finished
 
-  !> output fields; the particle index field only in a scene with particles
-  character(len=9), parameter :: field_names(6) = ['rho      ', 'ux       ', 'uy       ', &
-                                                   'vorticity', 'pressure ', 'particle ']
+  !> output fields and their units; in a scene with particles also the integer field
+  !! `particle` (written by io_write_fields), in this order
+  character(len=9), parameter :: field_names(5) = ['rho      ', 'ux       ', 'uy       ', &
+                                                   'vorticity', 'pressure ']
+  character(len=10), parameter :: field_units(5) = ['g/cm^3    ', 'cm/s      ', 'cm/s      ', &
+                                                    '1/s       ', 'g/(cm s^2)']
   !> the /particles series besides t, one column per particle
   character(len=6), parameter :: series_names(8) = ['x     ', 'y     ', 'u     ', 'v     ', &
                                                     'omega ', 'fx    ', 'fy    ', 'torque']
+  !> their units: force and torque per unit depth
+  character(len=9), parameter :: series_units(8) = ['cm       ', 'cm       ', 'cm/s     ', &
+                                                    'cm/s     ', '1/s      ', 'g/s^2    ', &
+                                                    'g/s^2    ', 'g cm/s^2 ']
 
 contains
 
@@ -42,8 +49,8 @@ contains
     character(len=:), allocatable :: dir, err, nml
     character(len=256) :: msg
     integer :: ios
-    character(len=64) :: pnames(12)
-    real(wp) :: pvalues(12), s(0:8)
+    character(len=64) :: pnames(9)
+    real(wp) :: pvalues(9), s(0:8)
     logical :: ok
 
     sim%stop_reason = 'running'
@@ -62,9 +69,10 @@ contains
                      [character(len=11) :: 'particles', 'diagnostics'], &
                      [sim%particles_on, sim%pair_on], &
                      sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
-                     field_names, err)
+                     [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
                                        sim%restart_from//': '//err)
+      sim%io%compress = sim%cfg%output%compress
       sim%output_open = .true.
       call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
       if (len(err) > 0) call fatal_local(err)
@@ -80,6 +88,7 @@ contains
     call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
+    sim%io%compress = sim%cfg%output%compress
     sim%output_open = .true.
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)
@@ -89,17 +98,23 @@ contains
     end if
 
     s = collision_describe(sim%coll)
+    ! the lattice parameters in the units of dkt_config; tau, nu_lb and the rates are lattice
+    ! numbers, dimensionless
     pnames = [character(len=64) :: 'dx', 'dt', 'tau', 'nu_lb', 's_e', 's_eps', 's_q', 's_nu', &
-              'nx', 'ny', 'steps', 'mach']
+              'mach']
     pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
-               real(sim%lp%nx, wp), real(sim%lp%ny, wp), real(sim%lp%steps, wp), sim%lp%mach]
+               sim%lp%mach]
     if (allocated(sim%cfg%given)) then
       nml = sim%cfg%given            ! the input as read, before &pair and &window expanded
     else
       call config_to_namelist(sim%cfg, nml)
     end if
     call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
-                      compiler_version(), dkt_build_flags, pnames, pvalues)
+                      compiler_version(), dkt_build_flags, pnames, pvalues, &
+                      [character(len=2) :: 'cm', 's', '1', '1', '1', '1', '1', '1', '1'])
+    call io_write_attribute(sim%io, '/run', 'nx', sim%lp%nx)
+    call io_write_attribute(sim%io, '/run', 'ny', sim%lp%ny)
+    call io_write_attribute(sim%io, '/run', 'steps', sim%lp%steps)
     call write_derived(sim)
     ! replaced when the run ends; a file that still says 'running' is of a run that is going
     ! on or was killed
@@ -124,27 +139,33 @@ contains
     subroutine write_derived(sim)
       type(simulation_t), intent(inout) :: sim
       real(wp) :: enter, release
-      associate (c => sim%cfg, io => sim%io)
-        call io_write_attribute(io, '/run', 't_ref', c%run%t_ref)
-        call io_write_attribute(io, '/run', 'h_ref', c%particles%gravity*c%run%t_ref**2)
-        call io_write_attribute(io, '/run', 'gravity', c%particles%gravity)
-        call io_write_attribute(io, '/run', 'width', c%domain%width)
-        call io_write_attribute(io, '/run', 'rho_f', c%fluid%density)
-        call io_write_attribute(io, '/run', 'mu', c%fluid%viscosity)
-        if (sim%particles_on) call io_write_attribute(io, '/run', 'd1', pair_d1(c))
+      associate (c => sim%cfg)
+        call put('t_ref', c%run%t_ref, 's')
+        call put('h_ref', c%particles%gravity*c%run%t_ref**2, 'cm')
+        call put('gravity', c%particles%gravity, 'cm/s^2')
+        call put('width', c%domain%width, 'cm')
+        call put('rho_f', c%fluid%density, 'g/cm^3')
+        call put('mu', c%fluid%viscosity, 'g/(cm s)')
+        if (sim%particles_on) call put('d1', pair_d1(c), 'cm')
         if (sim%pair_on) then
-          call io_write_attribute(io, '/run', 'diameter_1', c%particles%diameter(1))
-          call io_write_attribute(io, '/run', 'diameter_2', c%particles%diameter(2))
+          call put('diameter_1', c%particles%diameter(1), 'cm')
+          call put('diameter_2', c%particles%diameter(2), 'cm')
           call kiss_thresholds(c, enter, release)
-          call io_write_attribute(io, '/run', 'kiss_enter', enter*sim%lp%dx)
-          call io_write_attribute(io, '/run', 'kiss_release', release*sim%lp%dx)
-          call io_write_attribute(io, '/run', 'kiss_enter_cells', kiss_enter_cells(c))
-          call io_write_attribute(io, '/run', 'kiss_release_cells', c%diagnostics%release_cells)
-          call io_write_attribute(io, '/run', 'kiss_enter_d1', c%diagnostics%enter_d1)
-          call io_write_attribute(io, '/run', 'kiss_release_d1', c%diagnostics%release_d1)
+          call put('kiss_enter', enter*sim%lp%dx, 'cm')
+          call put('kiss_release', release*sim%lp%dx, 'cm')
+          call put('kiss_enter_cells', kiss_enter_cells(c), '1')
+          call put('kiss_release_cells', c%diagnostics%release_cells, '1')
+          call put('kiss_enter_d1', c%diagnostics%enter_d1, '1')
+          call put('kiss_release_d1', c%diagnostics%release_d1, '1')
         end if
       end associate
     end subroutine write_derived
+
+    subroutine put(name, value, unit)
+      character(len=*), intent(in) :: name, unit
+      real(wp), intent(in) :: value
+      call write_quantity(sim%io, '/run', name, value, unit)
+    end subroutine put
 
     !> Keep the header and the first `samples` rows of the CSV file, then append to it.
     subroutine reopen_csv(path)
@@ -288,9 +309,9 @@ contains
     if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
     sim%samples = sim%samples + 1
     sim%series_step = n
-    call io_write_series(sim%io, 'particles', ['t'], [n*dt])
-    call io_write_table(sim%io, 'particles', series_names, v)
-    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0])
+    call io_write_series(sim%io, 'particles', ['t'], [n*dt], ['s'])
+    call io_write_table(sim%io, 'particles', series_names, v, series_units)
+    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0], ['cm'])
     if (sim%pair_on) call write_pair(sim, n, v)
   end subroutine output_particles
 
@@ -315,8 +336,10 @@ contains
     end do
     names = [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
     call io_write_series(sim%io, 'diagnostics', names, &
-                         [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)])
-    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]))
+                         [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)], &
+                         [character(len=2) :: 's', '1', 'cm', 'cm', 'cm', '1'])
+    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]), &
+                        ['1', '1'])
     if (sim%csv_open) then
       write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
         re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
@@ -345,29 +368,26 @@ contains
       call io_write_attribute(sim%io, '/diagnostics', 'pattern', pattern)
       call io_write_attribute(sim%io, '/diagnostics', 'episodes', e%n)
       call io_write_attribute(sim%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter', e%enter*dx)
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release', e%release*dx)
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_enter_cells', &
-                              kiss_enter_cells(sim%cfg))
-      call io_write_attribute(sim%io, '/diagnostics', 'kiss_release_cells', &
-                              sim%cfg%diagnostics%release_cells)
-      call io_write_attribute(sim%io, '/diagnostics', 'd1', pair_d1(sim%cfg))
-      call io_write_attribute(sim%io, '/diagnostics', 'gamma', gamma)
-      call io_write_attribute(sim%io, '/diagnostics', 'dh', dh)
-      call io_write_attribute(sim%io, '/diagnostics', 't_ref', sim%cfg%run%t_ref)
-      call io_write_attribute(sim%io, '/diagnostics', 'h_ref', &
-                              cp%gravity*sim%cfg%run%t_ref**2)
-      call io_write_attribute(sim%io, '/diagnostics', 'gravity', cp%gravity)
-      call io_write_attribute(sim%io, '/diagnostics', 'width', sim%cfg%domain%width)
+      call put('kiss_enter', e%enter*dx, 'cm')
+      call put('kiss_release', e%release*dx, 'cm')
+      call put('kiss_enter_cells', kiss_enter_cells(sim%cfg), '1')
+      call put('kiss_release_cells', sim%cfg%diagnostics%release_cells, '1')
+      call put('d1', pair_d1(sim%cfg), 'cm')
+      call put('gamma', gamma, '1')
+      call put('dh', dh, '1')
+      call put('t_ref', sim%cfg%run%t_ref, 's')
+      call put('h_ref', cp%gravity*sim%cfg%run%t_ref**2, 'cm')
+      call put('gravity', cp%gravity, 'cm/s^2')
+      call put('width', sim%cfg%domain%width, 'cm')
       call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
                               merge(0, 1, sim%stop_reason == 'finished'))
       do k = 1, e%n
         call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
-                             [e%t_start(k), e%t_end(k), e%gap_min(k)*dx])
+                             [e%t_start(k), e%t_end(k), e%gap_min(k)*dx], ['s ', 's ', 'cm'])
       end do
-      write (line, '(a,f5.2,a,f6.2,a,i0,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
-        ', D_h/D_1 = ', dh, '; ', e%n, ' kissing episodes)'
-      call log_line(trim(line))
+      write (line, '(a,f5.2,a,f6.2,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
+        ', D_h/D_1 = ', dh, '; '
+      call log_line(trim(line)//' '//counted(e%n, 'kissing episode')//')')
       do k = 1, e%n
         write (line, '(a,i0,a,f8.4,a,f8.4,a,f7.3,a,f7.3,a,f7.4,a)') '  episode ', k, ': t = ', &
           e%t_start(k), ' .. ', e%t_end(k), ' s (t* = ', e%t_start(k)/sim%cfg%run%t_ref, &
@@ -380,17 +400,35 @@ contains
         e%release, ' spacings)'
       call log_line(trim(line))
     end associate
+  contains
+    subroutine put(name, value, unit)
+      character(len=*), intent(in) :: name, unit
+      real(wp), intent(in) :: value
+      call write_quantity(sim%io, '/diagnostics', name, value, unit)
+    end subroutine put
   end subroutine output_pair_report
 
+  !> Attribute `name` of the object at `path` and its unit as the string attribute
+  !! `name`_units (HDF5 has no attributes of attributes).
+  subroutine write_quantity(io, path, name, value, unit)
+    type(io_t), intent(inout) :: io
+    character(len=*), intent(in) :: path, name, unit
+    real(wp), intent(in) :: value
+    call io_write_attribute(io, path, name, value)
+    call io_write_attribute(io, path, name//'_units', unit)
+  end subroutine write_quantity
+
   !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
-  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)).
+  !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)); with particles the particle number of each node
+  !! and the disks (centre, velocity, angular velocity, radius) at this step.
   subroutine output_fields(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    real(wp), allocatable :: fld(:, :, :)
+    real(wp), allocatable :: fld(:, :, :), id(:, :), disks(:, :)
     real(wp) :: uc, y0
+    integer :: k
     associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
-      allocate (fld(nx, nyl, merge(6, 5, sim%particles_on)))
+      allocate (fld(nx, nyl, 5))
       call macroscopic(sim%dom, sim%f, lp%force_lb, fld(:, :, 1), fld(:, :, 2), fld(:, :, 3))
       call vorticity(sim%dom, fld(:, :, 2), fld(:, :, 3), sim%bc%periodic_x, fld(:, :, 4))
       uc = lp%dx/lp%dt
@@ -402,10 +440,19 @@ contains
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
       sim%fields_step = n
       if (sim%particles_on) then
-        call particles_solid_field(sim%parts, sim%dom, fld(:, :, 6))
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld)
+        allocate (id(nx, nyl), disks(sim%parts%n, 6))
+        call particles_solid_field(sim%parts, sim%dom, id)
+        do k = 1, sim%parts%n
+          associate (p => sim%parts%p(k))
+            ! as the /particles series computes them, so both hold the same bits
+            disks(k, :) = [p%x*lp%dx, p%y*lp%dx + y0, p%u*lp%dx/lp%dt, p%v*lp%dx/lp%dt, &
+                           p%omega/lp%dt, p%r*lp%dx]
+          end associate
+        end do
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units, &
+                             solid=nint(id), disks=disks)
       else
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names(1:5), fld)
+        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units)
       end if
     end associate
   end subroutine output_fields

@@ -17,8 +17,9 @@ module dkt_registry
   public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
   public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice, add_choices
   public :: find_key, has_group, origin_of, blame, unknown_group_hint, unknown_key_hint, check_key
-  public :: value_text, allowed_text, type_name, text_length, fmt_real, read_real
+  public :: value_text, allowed_text, type_name, text_length, fmt_real, fmt_num, read_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
+  public :: counted
   public :: printable
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
@@ -459,10 +460,21 @@ contains
     call ieee_set_status(status)
   end subroutine read_real
 
-  !> The shortest decimal text that reads back to exactly `x`, with a decimal point or an
-  !! exponent so that it reads as a real: 2.0, 0.004, 0.135526, 1.0e-7, -3.5e20.
-  function fmt_real(x) result(s)
+  !> A computed number in a message: as fmt_real when ten significant digits or fewer give `x`
+  !! exactly, else six significant digits (0.25000124999804724 -> 0.250001), so that round-off
+  !! tails do not show.
+  function fmt_num(x) result(s)
     real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    s = fmt_real(x, short=.true.)
+  end function fmt_num
+
+  !> The shortest decimal text that reads back to exactly `x`, with a decimal point or an
+  !! exponent so that it reads as a real: 2.0, 0.004, 0.135526, 1.0e-7, -3.5e20. With `short`,
+  !! six significant digits when that takes more than ten.
+  function fmt_real(x, short) result(s)
+    real(wp), intent(in) :: x
+    logical, intent(in), optional :: short
     character(len=:), allocatable :: s
     character(len=40) :: buf
     character(len=16) :: fmt
@@ -483,6 +495,9 @@ contains
       call read_real(buf, y, ios)
       if (ios == 0 .and. transfer(y, 0_int64) == transfer(abs(x), 0_int64)) exit ! bitwise
     end do
+    if (present(short)) then
+      if (short .and. d > 9) write (buf, '(es40.5e3)') abs(x)
+    end if
     buf = adjustl(buf)
     p = index(buf, 'E')
     read (buf(p + 1:), *) e
@@ -556,6 +571,15 @@ contains
       j = j + 1
     end do
   end function printable
+
+  !> `n` and the noun, plural unless n is 1: '1 rank', '2 ranks'.
+  function counted(n, noun) result(s)
+    integer, intent(in) :: n
+    character(len=*), intent(in) :: noun
+    character(len=:), allocatable :: s
+    s = itoa(n)//' '//noun
+    if (n /= 1) s = s//'s'
+  end function counted
 
   function itoa(i) result(s)
     integer, intent(in) :: i

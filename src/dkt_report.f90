@@ -10,7 +10,7 @@ module dkt_report
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
-  use dkt_registry, only: itoa
+  use dkt_registry, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
   implicit none
@@ -37,7 +37,7 @@ contains
     integer :: k
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
-      write (line, '(a,a,a,i0,a)') 'scene ', trim(cfg%file), ' on ', dom%nranks, ' ranks'
+      line = 'scene '//trim(cfg%file)//' on '//counted(dom%nranks, 'rank')
       call log_line(trim(line))
       write (line, '(a,es12.5,a,es12.5,a,f8.5,a,es12.5)') 'lattice: dx = ', lp%dx, ' cm, dt = ', &
         lp%dt, ' s, tau = ', lp%tau, ', nu = ', lp%nu_lb
@@ -123,7 +123,7 @@ contains
       end if
       k = lp%field_every
       if (k > 0) then
-        write (line, '(a,i0,a)') 'fields every ', k, ' steps and at the end'
+        line = 'fields every '//counted(k, 'step')//' and at the end'
       else
         line = 'fields at the end'
       end if
@@ -175,11 +175,11 @@ contains
     real(wp) :: t
     character(len=256) :: line
     t = MPI_Wtime() - prog%t_start
-    write (line, '(a,f9.2,a,i0,a,i0,a,f9.3,a,i0,a)') 'performance: ', &
+    write (line, '(a,f9.2,a,i0,a,a,a,f9.3,a)') 'performance: ', &
       real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - prog%first + 1, wp)/ &
       max(t, 1.0e-9_wp)/1.0e6_wp, ' MLUPS (', int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
-      n - prog%first + 1, ' steps in ', t, ' s on ', sim%dom%nranks, ' ranks)'
-    call log_line(trim(line))
+      counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
+    call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
   end subroutine report_performance
 
 end module dkt_report

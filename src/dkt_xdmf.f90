@@ -2,6 +2,13 @@
 !> the XML that lets ParaView/VisIt open them as a time series on the lattice. Text only: the
 !> HDF5 itself is written by dkt_io, which keeps an xdmf_t per open file. Every rank may record
 !> frames; one rank (rank 0) writes the file.
+!>
+!> Each output time is a spatial collection of two grids: `fields`, a 3DCoRectMesh of one node
+!> layer in the X-Y plane (x across, y along the channel, z = 0), with the scalar fields and the
+!> vector `velocity` = (ux, uy, 0) joined from the ux and uy datasets by an XDMF function (no
+!> extra data on disk); and `particles`, one Polyvertex point per disk at its centre with
+!> `velocity` (vector), `radius`, `omega` and `id`. ParaView's "XDMF Reader" (XDMFReader in
+!> pvpython) reads both; its Xdmf3 readers read the grids but not the joined vector.
 module dkt_xdmf
   use dkt_kinds, only: wp
   use dkt_filesystem, only: rename_file
@@ -16,10 +23,13 @@ module dkt_xdmf
     integer :: step = 0
     real(wp) :: t = 0.0_wp      !! s
     real(wp) :: offset = 0.0_wp !! cm, window offset along y
+    integer :: nparticles = 0   !! disks stored in <group>/particles (0: none)
     character(len=:), allocatable :: group     !! HDF5 group of the snapshot, e.g. /fields/000010
     !> dataset names in that group; fixed length, because gfortran 12 loses the length of a
     !! deferred-length character array when the frames are copied into a grown array
     character(len=64), allocatable :: fields(:)
+    !> bytes per value of each dataset, negative for an integer type (-2: int16, 8: float64)
+    integer, allocatable :: bytes(:)
   end type frame_t
 
   !> The sidecar of one HDF5 file and the snapshots it lists.
@@ -54,14 +64,18 @@ contains
     allocate (x%frames(8))
   end subroutine xdmf_init
 
-  !> Record the snapshot of `step` stored as datasets `names` in HDF5 group `group`.
-  subroutine xdmf_add_frame(x, step, t, offset, group, names)
+  !> Record the snapshot of `step` stored as datasets `names` in HDF5 group `group`, with
+  !! `bytes(k)` bytes per value of dataset k (negative for integers), and `nparticles` disks in
+  !! its sub-group `particles` (position, velocity, radius, omega, id).
+  subroutine xdmf_add_frame(x, step, t, offset, group, names, bytes, nparticles)
     type(xdmf_t), intent(inout) :: x
     integer, intent(in) :: step              !! time step
     real(wp), intent(in) :: t                !! s, simulated time
     real(wp), intent(in) :: offset           !! cm, y of the window bottom
     character(len=*), intent(in) :: group    !! absolute HDF5 path of the snapshot group
     character(len=*), intent(in) :: names(:) !! its datasets, one per field
+    integer, intent(in) :: bytes(:)          !! bytes per value, negative for an integer type
+    integer, intent(in) :: nparticles        !! disks in <group>/particles
     type(frame_t), allocatable :: grown(:)
     integer :: k
 
@@ -76,6 +90,8 @@ contains
       f%t = t
       f%offset = offset
       f%group = group
+      f%nparticles = nparticles
+      f%bytes = bytes
       if (maxval(len_trim(names)) > len(f%fields)) &
         call fatal_local('xdmf_add_frame: a field name is longer than 64 characters')
       allocate (f%fields(size(names)))
@@ -85,42 +101,51 @@ contains
     end associate
   end subroutine xdmf_add_frame
 
-  !> Rewrite the sidecar with every snapshot so far: a temporal collection of 2DCoRectMesh grids
-  !! on the cell-centred nodes ((i - 1/2) dx, (j - 1/2) dx + offset). XDMF lists dimensions,
-  !! origin and spacing slowest index first, i.e. (y, x). Written to a temporary name and
-  !! renamed, so a reader never sees a half-written file.
+  !> Rewrite the sidecar with every snapshot so far: a temporal collection with, at each output
+  !! time, the fields on the cell-centred nodes ((i - 1/2) dx, (j - 1/2) dx + offset, 0) and the
+  !! disks. XDMF lists dimensions, origin and spacing slowest index first, i.e. (z, y, x).
+  !! Written to a temporary name and renamed, so a reader never sees a half-written file.
   subroutine xdmf_write(x)
     type(xdmf_t), intent(in) :: x
-    character(len=:), allocatable :: xml, dims, tmp, prec
+    character(len=:), allocatable :: xml, dims, tmp, prec, h5
     character(len=512) :: msg
     character(len=1), parameter :: nl = new_line('a')
     integer :: u, ios, n, k
 
-    dims = itoa(x%ny)//' '//itoa(x%nx)
+    dims = '1 '//itoa(x%ny)//' '//itoa(x%nx)
     prec = itoa(storage_size(1.0_wp)/8)
     xml = '<?xml version="1.0" ?>'//nl//'<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>'//nl// &
           '<Xdmf Version="3.0">'//nl//'  <Domain>'//nl// &
-          '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">'//nl
+          '    <Grid Name="run" GridType="Collection" CollectionType="Temporal">'//nl
     do n = 1, x%nframes
       associate (f => x%frames(n))
-        xml = xml//'      <Grid Name="step '//itoa(f%step)//'" GridType="Uniform">'//nl// &
+        h5 = xml_escape(x%h5_name//':'//f%group)
+        xml = xml//'      <Grid Name="step '//itoa(f%step)//'" GridType="Collection" '// &
+              'CollectionType="Spatial">'//nl// &
               '        <Time Value="'//rtoa(f%t)//'"/>'//nl// &
-              '        <Topology TopologyType="2DCoRectMesh" Dimensions="'//dims//'"/>'//nl// &
-              '        <Geometry GeometryType="ORIGIN_DXDY">'//nl// &
-              '          <DataItem Name="Origin" Dimensions="2" NumberType="Float" '// &
-              'Precision="'//prec//'" Format="XML">'//rtoa(0.5_wp*x%dx + f%offset)//' '// &
+              '        <Grid Name="fields" GridType="Uniform">'//nl// &
+              '          <Topology TopologyType="3DCoRectMesh" Dimensions="'//dims//'"/>'//nl// &
+              '          <Geometry GeometryType="ORIGIN_DXDYDZ">'//nl// &
+              '            <DataItem Name="Origin" Dimensions="3" NumberType="Float" '// &
+              'Precision="'//prec//'" Format="XML">0 '//rtoa(0.5_wp*x%dx + f%offset)//' '// &
               rtoa(0.5_wp*x%dx)//'</DataItem>'//nl// &
-              '          <DataItem Name="Spacing" Dimensions="2" NumberType="Float" '// &
-              'Precision="'//prec//'" Format="XML">'//rtoa(x%dx)//' '//rtoa(x%dx)// &
-              '</DataItem>'//nl//'        </Geometry>'//nl
+              '            <DataItem Name="Spacing" Dimensions="3" NumberType="Float" '// &
+              'Precision="'//prec//'" Format="XML">'//rtoa(x%dx)//' '//rtoa(x%dx)//' '// &
+              rtoa(x%dx)//'</DataItem>'//nl//'          </Geometry>'//nl
         do k = 1, size(f%fields)
-          xml = xml//'        <Attribute Name="'//xml_escape(trim(f%fields(k)))// &
-                '" AttributeType="Scalar" Center="Node">'//nl// &
-                '          <DataItem Dimensions="'//dims//'" NumberType="Float" Precision="'// &
-                prec//'" Format="HDF">'//xml_escape(x%h5_name//':'//f%group//'/'// &
-                                                    trim(f%fields(k)))//'</DataItem>'//nl// &
-                '        </Attribute>'//nl
+          xml = xml//attribute(trim(f%fields(k)), 'Scalar', dims, f%bytes(k), &
+                               h5//'/'//xml_escape(trim(f%fields(k))), '          ')
         end do
+        if (any(f%fields == 'ux') .and. any(f%fields == 'uy')) &
+          xml = xml//'          <Attribute Name="velocity" AttributeType="Vector" '// &
+                'Center="Node">'//nl// &
+                '            <DataItem ItemType="Function" Function="JOIN($0, $1, 0*$0)" '// &
+                'Dimensions="'//dims//' 3">'//nl// &
+                '              '//item(dims, storage_size(1.0_wp)/8, h5//'/ux')// &
+                '              '//item(dims, storage_size(1.0_wp)/8, h5//'/uy')// &
+                '            </DataItem>'//nl//'          </Attribute>'//nl
+        xml = xml//'        </Grid>'//nl
+        if (f%nparticles > 0) xml = xml//particle_grid(f%nparticles, h5//'/particles')
         xml = xml//'      </Grid>'//nl
       end associate
     end do
@@ -158,6 +183,50 @@ contains
   end subroutine xdmf_free
 
   ! ---------------------------------------------------------------------------------------------
+
+  !> The grid of `n` disks stored in HDF5 group `h5` (escaped "file:/group"): points at their
+  !! centres with their velocity, radius, angular velocity and number.
+  function particle_grid(n, h5) result(xml)
+    integer, intent(in) :: n
+    character(len=*), intent(in) :: h5
+    character(len=:), allocatable :: xml
+    character(len=1), parameter :: nl = new_line('a')
+    character(len=*), parameter :: ind = '          '
+    integer :: b
+    b = storage_size(1.0_wp)/8
+    xml = '        <Grid Name="particles" GridType="Uniform">'//nl// &
+          ind//'<Topology TopologyType="Polyvertex" NumberOfElements="'//itoa(n)// &
+          '" NodesPerElement="1"/>'//nl// &
+          ind//'<Geometry GeometryType="XYZ">'//nl// &
+          ind//'  '//item(itoa(n)//' 3', b, h5//'/position')// &
+          ind//'</Geometry>'//nl// &
+          attribute('velocity', 'Vector', itoa(n)//' 3', b, h5//'/velocity', ind)// &
+          attribute('radius', 'Scalar', itoa(n), b, h5//'/radius', ind)// &
+          attribute('omega', 'Scalar', itoa(n), b, h5//'/omega', ind)// &
+          attribute('id', 'Scalar', itoa(n), -4, h5//'/id', ind)// &
+          '        </Grid>'//nl
+  end function particle_grid
+
+  !> A node-centred Attribute element holding one HDF5 dataset.
+  function attribute(name, kind, dims, bytes, h5, ind) result(xml)
+    character(len=*), intent(in) :: name, kind, dims, h5, ind
+    integer, intent(in) :: bytes
+    character(len=:), allocatable :: xml
+    xml = ind//'<Attribute Name="'//xml_escape(name)//'" AttributeType="'//kind// &
+          '" Center="Node">'//new_line('a')//ind//'  '//item(dims, bytes, h5)// &
+          ind//'</Attribute>'//new_line('a')
+  end function attribute
+
+  !> A DataItem of an HDF5 dataset (`h5` escaped "file:/path") of `bytes` bytes per value,
+  !! negative for an integer type; ends with a line break.
+  function item(dims, bytes, h5) result(xml)
+    character(len=*), intent(in) :: dims, h5
+    integer, intent(in) :: bytes
+    character(len=:), allocatable :: xml
+    xml = '<DataItem Dimensions="'//dims//'" NumberType="'// &
+          trim(merge('Int  ', 'Float', bytes < 0))//'" Precision="'//itoa(abs(bytes))// &
+          '" Format="HDF">'//h5//'</DataItem>'//new_line('a')
+  end function item
 
   pure function xml_escape(s) result(r)
     character(len=*), intent(in) :: s

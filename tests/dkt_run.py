@@ -62,8 +62,14 @@ def last_fields(h5file: Path) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     with h5py.File(h5file, "r") as h5:
         groups = sorted(h5["fields"].keys())
         g = h5["fields"][groups[-1]]
-        fields = {name: g[name][()] for name in g.keys()}
-        attrs = {k: float(np.asarray(v).ravel()[0]) for k, v in g.attrs.items()}
+        # the datasets (a sub-group `particles` holds the disks) and the numeric attributes
+        # (each unit is a string attribute <name>_units)
+        fields = {n: d[()] for n, d in g.items() if isinstance(d, h5py.Dataset)}
+        attrs = {
+            k: float(np.asarray(v).ravel()[0])
+            for k, v in g.attrs.items()
+            if not k.endswith("_units")
+        }
     return fields, attrs
 
 

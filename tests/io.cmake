@@ -9,3 +9,7 @@ set_target_properties(test_io_prog PROPERTIES
 dkt_set_fortran_flags(test_io_prog)
 dkt_add_pytest(NAME io_readback FILE tests/test_io_readback.py LABELS mpi PROCESSORS 4
   ENV "DKT_TEST_IO_EXE=$<TARGET_FILE:test_io_prog>")
+
+# The run file as ParaView reads it (pvpython with the XDMF reader): the main job's lattice.
+dkt_add_pytest(NAME paraview FILE tests/test_paraview.py LABELS paraview mpi PROCESSORS 2
+  TIMEOUT 900)

@@ -146,6 +146,18 @@ CASES = {
         args=["--set", "output.overwrite=maybe"],
         pieces=["{file}", "--set output.overwrite=maybe", "&output", "maybe", ".true."],
     ),
+    "compress-above-9": Case(
+        args=["--set", "output.compress=10"],
+        pieces=["{file}", "--set output.compress=10", "&output", "compress", "10", "9"],
+    ),
+    "compress-negative": Case(
+        args=["--set", "output.compress=-1"],
+        pieces=["{file}", "--set output.compress=-1", "&output", "compress", "-1", "0"],
+    ),
+    "compress-not-an-integer": Case(
+        args=["--set", "output.compress=2.5"],
+        pieces=["{file}", "--set output.compress=2.5", "&output", "compress", "2.5"],
+    ),
     "choice-not-in-list": Case(
         "tau = 1.0",
         "tau = 1.0, collision = 'xyz'",
@@ -901,3 +913,60 @@ def test_readme_preview_has_an_output_dir_of_its_own() -> None:
         )
         assert previews, f"no preview command with an output.dir in {path}"
         assert all(d.rstrip("/") not in ("runs/case1", "") for d in previews), previews
+
+
+# ---- messages read as text: line breaks, numbers, singular and plural ---------------------------
+
+
+@pytest.mark.parametrize("args", [[], ["--bogus"], ["-V"]], ids=["no-argument", "bogus", "-V"])
+def test_usage_errors_break_lines_instead_of_printing_escapes(tmp_path: Path, args) -> None:
+    """A usage error is an error line followed by the usage line, on lines of their own: no
+    escaped line break (<0a>) in the text. Catches the message escaping its own line breaks."""
+    proc = dkt(args, tmp_path, 1)
+    assert proc.returncode != 0
+    assert "<0a>" not in proc.stderr, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert lines[0].startswith("dktlbm: error: "), proc.stderr
+    assert any(ln.startswith("usage: dktlbm FILE") for ln in lines[1:]), proc.stderr
+
+
+def test_computed_numbers_in_a_warning_show_no_round_off_tail(tmp_path: Path) -> None:
+    """The too-short warning of case1 quotes the gap of the pair and the time it needs, both
+    computed: each number in it has at most 10 significant digits (no 0.25000124999804724).
+    Catches a computed value printed with every digit of its binary round-off."""
+    args = [str(INPUT / "case1.nml"), "--check", "--set", "run.t_end=0.2"]
+    proc = dkt(args, tmp_path, 1)
+    assert proc.returncode == 0, proc.stderr
+    warning = next(ln for ln in proc.stderr.splitlines() if "too short to classify" in ln)
+    numbers = re.findall(r"\d+\.\d+(?:e[-+]?\d+)?", warning)
+    assert len(numbers) >= 3, warning
+    for n in numbers:
+        digits = n.split("e")[0].replace(".", "").lstrip("0")
+        assert len(digits) <= 10, f"{n} in: {warning}"
+
+
+def test_counts_of_one_are_singular(tmp_path: Path) -> None:
+    """A run on 1 rank says 'on 1 rank' in the scene and performance lines and '0 kissing
+    episodes' (plural for zero) in the pattern line; on 2 ranks 'on 2 ranks'. Catches '1 ranks'."""
+    for ranks, word in ((1, "rank"), (2, "ranks")):
+        out = tmp_path / f"out{ranks}"
+        cwd = tmp_path / f"cwd{ranks}"
+        cwd.mkdir()
+        args = [
+            str(INPUT / "case1.nml"),
+            "--set",
+            "lbm.cells_per_diameter=6",
+            "--set",
+            "run.steps=2",
+            "--set",
+            f"output.dir={out}",
+        ]
+        proc = dkt(args, cwd, ranks)
+        assert proc.returncode == 0, proc.stderr
+        scene = next(ln for ln in proc.stdout.splitlines() if ln.startswith("scene "))
+        perf = next(ln for ln in proc.stdout.splitlines() if ln.startswith("performance:"))
+        assert scene.endswith(f" on {ranks} {word}"), scene
+        assert perf.endswith(f" on {ranks} {word})"), perf
+        assert re.search(r"\b1 ranks\b", proc.stdout) is None, proc.stdout
+        pattern = next(ln for ln in proc.stdout.splitlines() if ln.startswith("DKT pattern"))
+        assert "; 0 kissing episodes)" in pattern, pattern

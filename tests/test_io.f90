@@ -73,7 +73,9 @@ program test_io
   call expect(err == '', 'io_open of a new file failed: '//err)
   call io_write_run(io, '&lbm'//nl//'  tau = 0.65'//nl//'/'//nl, '0.1.0', 'abc1234', nranks, &
                     compiler_version(), compiler_options(), &
-                    [character(len=2) :: 'dx', 'nx', 'ny'], [dx, real(nx, wp), real(ny, wp)])
+                    ['dx'], [dx], ['cm'])
+  call io_write_attribute(io, '/run', 'nx', nx)
+  call io_write_attribute(io, '/run', 'ny', ny)
   call fill(0)
   call io_write_fields(io, 0, 0.0_wp, 0.0_wp, names, fields)
   do r = 1, 3

@@ -138,8 +138,13 @@ def test_run_group_holds_configuration_provenance_and_parameters(runs, nranks):
         assert _text(attrs["compiler"]).strip()  # compiler_version(): never empty
         assert "compiler_flags" in attrs  # compiler_options() may be empty
         assert attrs["dx"] == DX
-        assert attrs["nx"] == NX
-        assert attrs["ny"] == NY
+        assert _text(attrs["dx_units"]) == "cm"
+        # integers as integers
+        assert attrs["nx"] == NX and attrs.get_id("nx").dtype.kind == "i"
+        assert attrs["ny"] == NY and attrs.get_id("ny").dtype.kind == "i"
+        assert attrs.get_id("ranks").dtype.kind == "i"
+        for name in ("namelist", "version", "git_revision", "compiler", "dx_units"):
+            assert h5py.check_string_dtype(attrs.get_id(name).dtype).length is None, name
 
 
 @pytest.mark.parametrize("nranks", RANKS)
@@ -184,12 +189,13 @@ def test_attributes_keep_rank0_value_and_type(runs, nranks):
     with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
         value, dtype = attr(f, "particles", "count")
         assert dtype.kind == "i" and value == NCOL  # 7 first, replaced by 3
+        # strings are variable-length UTF-8: h5py gives str
         value, dtype = attr(f, "particles/x", "unit")  # on a dataset
-        assert dtype.kind == "S" and value == b"cm"
+        assert h5py.check_string_dtype(dtype).encoding == "utf-8" and value == "cm"
         value, dtype = attr(f, "diagnostics", "pattern")
-        assert dtype.kind == "S" and value == b"repeated"
+        assert h5py.check_string_dtype(dtype).encoding == "utf-8" and value == "repeated"
         value, dtype = attr(f, "diagnostics", "note")
-        assert dtype.kind == "S" and value == b""
+        assert h5py.check_string_dtype(dtype).length is None and value == ""
         # both groups created by the attribute; the string 'tbd' replaced by a real
         assert isinstance(f["checks"], h5py.Group) and isinstance(f["checks/nested"], h5py.Group)
         value, dtype = attr(f, "checks/nested", "ratio")
@@ -281,20 +287,30 @@ def test_xdmf_names_existing_datasets_with_their_dims(runs, nranks, name):
         for grid, step in zip(grids, expected_steps, strict=True):
             t, offset = SNAPSHOTS[step]
             assert float(grid.find("Time").get("Value")) == t
-            topo = grid.find("Topology")
-            assert topo.get("TopologyType") == "2DCoRectMesh"
-            assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+            assert grid.get("CollectionType") == "Spatial"
+            fields = grid.find("Grid")
+            assert fields.get("Name") == "fields"
+            topo = fields.find("Topology")
+            assert topo.get("TopologyType") == "3DCoRectMesh"
+            assert [int(v) for v in topo.get("Dimensions").split()] == [1, NY, NX]
             geo = {
                 e.get("Name"): [float(v) for v in e.text.split()]
-                for e in grid.find("Geometry").findall("DataItem")
+                for e in fields.find("Geometry").findall("DataItem")
             }
-            # slowest index first: (y, x); nodes at cell centres, y shifted by the window
-            assert geo["Origin"] == [DX / 2 + offset, DX / 2]
-            assert geo["Spacing"] == [DX, DX]
-            attrs = grid.findall("Attribute")
-            assert sorted(a.get("Name") for a in attrs) == sorted(FIELDS)
+            # slowest index first: (z, y, x); nodes at cell centres, y shifted by the window
+            assert geo["Origin"] == [0.0, DX / 2 + offset, DX / 2]
+            assert geo["Spacing"] == [DX, DX, DX]
+            attrs = fields.findall("Attribute")
+            assert sorted(a.get("Name") for a in attrs) == sorted((*FIELDS, "velocity"))
             for attr in attrs:
                 assert attr.get("Center") == "Node"
+                if attr.get("Name") == "velocity":
+                    assert attr.get("AttributeType") == "Vector"
+                    join = attr.find("DataItem")
+                    assert join.get("Function") == "JOIN($0, $1, 0*$0)"
+                    parts = [e.text.strip() for e in join.findall("DataItem")]
+                    assert parts == [f"{name}.h5:/fields/{step:06d}/{c}" for c in ("ux", "uy")]
+                    continue
                 assert attr.get("AttributeType") == "Scalar"
                 item = attr.find("DataItem")
                 fname, dset = item.text.strip().split(":", 1)
@@ -302,5 +318,5 @@ def test_xdmf_names_existing_datasets_with_their_dims(runs, nranks, name):
                 assert (d / fname).exists()
                 assert dset in f, f"{dset} named by the XDMF is not in {fname}"
                 dims = tuple(int(v) for v in item.get("Dimensions").split())
-                assert f[dset].shape == dims
+                assert (1, *f[dset].shape) == dims
                 assert int(item.get("Precision")) == f[dset].dtype.itemsize

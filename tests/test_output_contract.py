@@ -211,23 +211,29 @@ def test_inlet_row_carries_the_parabolic_profile(h5) -> None:
 
 
 def test_xdmf_names_only_datasets_that_exist(result, h5) -> None:
-    """The .xdmf sidecar parses as XML; it has one grid per snapshot with its time, the (ny, nx)
-    topology, origin dx/2 and spacing dx; every HDF DataItem names an existing dataset of the
-    stated dimensions. Catches a stale or partial sidecar, x/y swapped, wrong paths."""
+    """The .xdmf sidecar parses as XML; it has one spatial collection per snapshot with its
+    time, holding the `fields` grid: a one-layer 3DCoRectMesh (1, ny, nx) in the X-Y plane,
+    origin (0, dx/2, dx/2) and spacing dx (z, y, x order); every HDF DataItem names an existing
+    dataset of the stated dimensions, with a leading 1 for the layer. Catches a stale or partial
+    sidecar, x/y swapped, wrong paths, a mesh ParaView lays in the Y-Z plane."""
     outdir = result[0]
     root = ET.parse(outdir / f"{NAME}.xdmf").getroot()
-    grids = [g for g in root.iter("Grid") if g.get("GridType") == "Uniform"]
-    assert len(grids) == len(h5["fields"]), "one grid per snapshot"
-    times = sorted(float(g.find("Time").get("Value")) for g in grids)
+    steps = [g for g in root.iter("Grid") if g.get("CollectionType") == "Spatial"]
+    assert len(steps) == len(h5["fields"]), "one collection per snapshot"
+    times = sorted(float(g.find("Time").get("Value")) for g in steps)
     assert times == pytest.approx([s * DT for s in expected_steps()], rel=1e-12, abs=1e-15)
     items = 0
-    for grid in grids:
+    for step in steps:
+        grids = [g.get("Name") for g in step.findall("Grid")]
+        assert grids == ["fields"], "a scene without particles has no particle grid"
+        grid = step.find("Grid")
         topo = grid.find("Topology")
-        assert [int(v) for v in topo.get("Dimensions").split()] == [NY, NX]
+        assert topo.get("TopologyType") == "3DCoRectMesh"
+        assert [int(v) for v in topo.get("Dimensions").split()] == [1, NY, NX]
         geometry = grid.find("Geometry").iter("DataItem")
         geo = {d.get("Name"): [float(v) for v in d.text.split()] for d in geometry}
-        assert geo["Origin"] == pytest.approx([DX / 2, DX / 2], rel=1e-12)
-        assert geo["Spacing"] == pytest.approx([DX, DX], rel=1e-12)
+        assert geo["Origin"] == pytest.approx([0.0, DX / 2, DX / 2], rel=1e-12)
+        assert geo["Spacing"] == pytest.approx([DX, DX, DX], rel=1e-12)
         for item in grid.iter("DataItem"):
             if item.get("Format") != "HDF":
                 continue
@@ -237,8 +243,9 @@ def test_xdmf_names_only_datasets_that_exist(result, h5) -> None:
             with h5py.File(outdir / file, "r") as f:
                 assert path in f, item.text
                 dims = [int(v) for v in item.get("Dimensions").split()]
-                assert list(f[path].shape) == dims, item.text
-    assert items == len(FIELDS) * len(grids)
+                assert [1, *f[path].shape] == dims, item.text
+    # each field, and ux and uy once more for the joined velocity vector
+    assert items == (len(FIELDS) + 2) * len(steps)
 
 
 def test_log_copy_has_the_performance_line_of_stdout(result) -> None:
@@ -263,3 +270,95 @@ def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -
     assert [p.name for p in tmp_path.iterdir()] == ["runs"]
     made = sorted(p.name for p in (tmp_path / "runs" / NAME).iterdir())
     assert made == [f"{NAME}.finished", f"{NAME}.h5", f"{NAME}.log", f"{NAME}.xdmf"]
+
+
+# ---- metadata of a run with particles (input/case1.nml, coarse and short) ----------------------
+PAIR_SETS = ["lbm.cells_per_diameter=8", "run.t_end=0.02", "output.field_interval=0.01"]
+
+
+@pytest.fixture(scope="module")
+def pair_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
+    """The pair run twice on 2 ranks: output.compress = 0 (the default) and 6."""
+    out = {}
+    for level in (0, 6):
+        d = tmp_path_factory.mktemp(f"compress{level}")
+        args = [
+            str(INPUT / "case1.nml"),
+            "--set",
+            f"output.dir={d}",
+            "--set",
+            f"output.compress={level}",
+        ]
+        for s in PAIR_SETS:
+            args += ["--set", s]
+        proc = run_args(args, RANKS, TIMEOUT)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        out[level] = d / "case1.h5"
+    return out
+
+
+def datasets(f: h5py.File) -> list[str]:
+    names: list[str] = []
+    f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
+    return names
+
+
+def test_every_dataset_and_quantity_attribute_has_units(pair_runs) -> None:
+    """Every dataset carries a string attribute `units`; every real attribute A of /run,
+    /diagnostics and the field groups has its companion A_units. Catches a new dataset or
+    quantity written without its unit."""
+    with h5py.File(pair_runs[0], "r") as f:
+        names = datasets(f)
+        assert any(n.endswith("/particles/position") for n in names)
+        missing = [n for n in names if "units" not in f[n].attrs]
+        assert not missing, f"datasets without units: {missing}"
+        assert f["particles/x"].attrs["units"] == "cm"
+        assert f["fields/000000/pressure"].attrs["units"] == "g/(cm s^2)"
+        groups = ["run", "diagnostics", *(f"fields/{g}" for g in f["fields"])]
+        for g in groups:
+            attrs = f[g].attrs
+            for key in attrs:
+                if attrs.get_id(key).dtype.kind == "f":
+                    assert f"{key}_units" in attrs, f"/{g} {key} has no {key}_units"
+        assert f["run"].attrs["dx_units"] == "cm" and f["run"].attrs["gravity_units"] == "cm/s^2"
+
+
+def test_integers_are_integers_and_strings_variable_length_utf8(pair_runs) -> None:
+    """/run nx, ny, steps, ranks are integer attributes (they were reals); stop_reason, version,
+    pattern and namelist are variable-length UTF-8 strings (h5py: str); the particle index
+    field is int16 with the particle numbers 0, 1, 2."""
+    with h5py.File(pair_runs[0], "r") as f:
+        run = f["run"].attrs
+        for key in ("nx", "ny", "steps", "ranks"):
+            assert run.get_id(key).dtype.kind == "i", key
+        assert run["ranks"] == RANKS
+        for path, key in (
+            ("run", "stop_reason"),
+            ("run", "version"),
+            ("run", "namelist"),
+            ("diagnostics", "pattern"),
+        ):
+            info = h5py.check_string_dtype(f[path].attrs.get_id(key).dtype)
+            assert info is not None and info.length is None and info.encoding == "utf-8", key
+        assert run["stop_reason"] == "finished"
+        for g in f["fields"]:
+            particle = f["fields"][g]["particle"]
+            assert particle.dtype == np.int16
+            assert set(np.unique(particle[()])) == {0, 1, 2}
+
+
+def test_compressed_snapshots_hold_the_same_values_in_fewer_bytes(pair_runs) -> None:
+    """output.compress = 6 deflates every field dataset (chunked, gzip level 6) and changes no
+    value: each dataset equals the uncompressed run's bit for bit, and the field datasets
+    take fewer bytes on disk."""
+    with h5py.File(pair_runs[0], "r") as a, h5py.File(pair_runs[6], "r") as b:
+        assert datasets(a) == datasets(b)
+        stored = {0: 0, 6: 0}
+        for n in datasets(a):
+            assert a[n].dtype == b[n].dtype and a[n][()].tobytes() == b[n][()].tobytes(), n
+            if n.startswith("fields/") and "/particles/" not in n:
+                assert a[n].compression is None, n
+                assert b[n].compression == "gzip" and b[n].compression_opts == 6, n
+                stored[0] += a[n].id.get_storage_size()
+                stored[6] += b[n].id.get_storage_size()
+        assert stored[6] < stored[0] / 2, stored

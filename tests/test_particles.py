@@ -216,7 +216,7 @@ def test_slabs_thinner_than_a_particle_are_refused_with_the_largest_rank_count(
     ]
     proc = run_args(args, ranks=2, timeout=30)
     assert proc.returncode != 0
-    assert "at most 1 ranks" in proc.stderr, proc.stderr
+    assert "at most 1 rank," in proc.stderr, proc.stderr
     assert not out.exists()
     assert run_args(args, ranks=1, timeout=120).returncode == 0
 

@@ -60,8 +60,15 @@ def field_groups(h5file: Path) -> list[tuple[dict[str, float], dict[str, np.ndar
     with h5py.File(h5file, "r") as h5:
         for step in sorted(h5["fields"]):
             g = h5["fields"][step]
-            attrs = {k: float(np.asarray(v).ravel()[0]) for k, v in g.attrs.items()}
-            out.append((attrs, {name: g[name][()] for name in g}))
+            # the numbers; their units (`time_units`, ...) are strings
+            attrs = {
+                k: float(np.asarray(v).ravel()[0])
+                for k, v in g.attrs.items()
+                if not k.endswith("_units")
+            }
+            # the fields are the datasets (the sub-group `particles` holds the disks)
+            fields = {n: d[()] for n, d in g.items() if isinstance(d, h5py.Dataset)}
+            out.append((attrs, fields))
     return out
 
 
