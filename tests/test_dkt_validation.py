@@ -17,6 +17,7 @@ import h5py
 import numpy as np
 
 from dkt_run import run
+from dktlbm.read import text_attr
 
 
 def test_case0_box_drafts_kisses_and_tumbles_like_the_published_runs(tmp_path: Path) -> None:
@@ -27,7 +28,7 @@ def test_case0_box_drafts_kisses_and_tumbles_like_the_published_runs(tmp_path: P
         y = h5["particles/y"][()]
         diag = h5["diagnostics"]
         dr = diag["dr"][()]
-        pattern = diag.attrs["pattern"].decode()
+        pattern = text_attr(diag.attrs["pattern"])
         starts = diag["episodes/start"][()]
         ends = diag["episodes/end"][()]
         enter = float(diag.attrs["kiss_enter"])

@@ -75,7 +75,11 @@ class Outcome:
     def all_finite(self) -> bool:
         """Every field of every written step and every particle series finite."""
         with h5py.File(self.h5, "r") as h5:
-            arrays = [ds[()] for g in h5["fields"].values() for ds in g.values()]
+            arrays: list[np.ndarray] = []
+            # every dataset below /fields, the particle state of each snapshot included
+            h5["fields"].visititems(
+                lambda _, obj: arrays.append(obj[()]) if isinstance(obj, h5py.Dataset) else None
+            )
             arrays += [h5["particles"][k][()] for k in h5["particles"]]
         return all(np.all(np.isfinite(a)) for a in arrays)
 

@@ -267,12 +267,14 @@ class RunSettings:
 # ---------------------------------------------------------------- the run file
 
 
-def _text(value: Any) -> str:
+def text_attr(value: Any) -> str:
+    """An HDF5 string attribute as str: variable-length UTF-8 (newer files), fixed-length bytes
+    (older ones) or a one-element array of either."""
     if isinstance(value, bytes | np.bytes_):
         value = value.decode("utf-8", "replace")
     elif isinstance(value, np.ndarray):
         value = value.ravel()[0] if value.size else ""
-        return _text(value)
+        return text_attr(value)
     return str(value).rstrip("\0").strip()
 
 
@@ -390,7 +392,7 @@ def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
     g = h5["diagnostics"]
     d: dict[str, Any] = {"attrs": {}}
     for k, v in g.attrs.items():
-        d["attrs"][k] = _text(v) if k == "pattern" else v
+        d["attrs"][k] = text_attr(v) if k == "pattern" else v
     for k, v in g.items():
         if hasattr(v, "shape"):
             d[k] = np.asarray(v[()], dtype=float)
@@ -468,7 +470,7 @@ def run_t_ref(path: str | Path) -> float:
         attrs = h5["run"].attrs if "run" in h5 else {}
         if "t_ref" in attrs:
             return _num(attrs["t_ref"])
-        text = _text(attrs["namelist"]) if "namelist" in attrs else ""
+        text = text_attr(attrs["namelist"]) if "namelist" in attrs else ""
     try:
         return RunSettings(text).number("run", "t_ref")
     except LaunchError as exc:
@@ -481,7 +483,7 @@ def stop_reason(h5: Any) -> str:
     file predates the attribute."""
     if "run" not in h5 or "stop_reason" not in h5["run"].attrs:
         return ""
-    return _text(h5["run"].attrs["stop_reason"])
+    return text_attr(h5["run"].attrs["stop_reason"])
 
 
 def _read_run(path: Path, h5: Any, need: int) -> Run:
@@ -507,7 +509,7 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
     offset = np.asarray(p["window_offset"][()], dtype=float) if "window_offset" in p else None
 
     run_attrs = h5["run"].attrs if "run" in h5 else {}
-    settings = RunSettings(_text(run_attrs["namelist"]) if "namelist" in run_attrs else "")
+    settings = RunSettings(text_attr(run_attrs["namelist"]) if "namelist" in run_attrs else "")
     numbers = numeric_attrs(run_attrs)
     dx = _num(run_attrs["dx"]) if "dx" in run_attrs else math.nan
     dt = _num(run_attrs["dt"]) if "dt" in run_attrs else math.nan
@@ -802,7 +804,7 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
             lim = _limits(run, d1, None, a)
         else:
             lim = Thresholds(enter, release, run.dx, d1, rule="as written in /diagnostics")
-        pattern = _text(a.get("pattern", ""))
+        pattern = text_attr(a.get("pattern", ""))
         if pattern not in PATTERNS:
             # an unfinished file: classify what there is
             pairs, is_open = classify(dr, lim.enter, lim.release)

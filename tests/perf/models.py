@@ -43,6 +43,7 @@ from precision_accuracy import episodes, pair_run
 from tradeoff import config_name, fmt, run_one
 
 from dkt_run import ROOT
+from dktlbm.read import text_attr
 from test_particles import REFDATA, series, uhlmann_events
 
 T_REF = 0.135526  # s, sqrt(H/g) for H = 18 cm (docs/model.md §6)
@@ -96,7 +97,7 @@ def answers_case0(out: Path) -> list[tuple[str, object]]:
         diag = h5["diagnostics"]
         t = h5["particles/t"][()]
         starts, ends = episodes(diag)
-        pattern = diag.attrs["pattern"].decode()
+        pattern = text_attr(diag.attrs["pattern"])
         re_end = diag["re"][()][-1]
     end = float(t[-1])
     closed = np.where(np.isfinite(ends), ends, end)

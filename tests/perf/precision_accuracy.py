@@ -39,6 +39,7 @@ import h5py
 import numpy as np
 
 from dkt_run import EXE, INPUT, ROOT, mpi_command, run
+from dktlbm.read import text_attr
 from test_particles import series
 from test_window import D, read_group, single_disk_scenes
 
@@ -108,7 +109,7 @@ def pair_run(h5file: Path) -> tuple[np.ndarray, ...]:
         diag = h5["diagnostics"]
         starts, ends = episodes(diag)
         return (h5["particles/t"][()], h5["particles/y"][()], diag["dr"][()], starts, ends,
-                diag.attrs["pattern"].decode())  # fmt: skip
+                text_attr(diag.attrs["pattern"]))  # fmt: skip
 
 
 def answers_case0_box(h5file: Path) -> list[tuple[str, object]]:
