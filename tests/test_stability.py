@@ -75,7 +75,11 @@ class Outcome:
     def all_finite(self) -> bool:
         """Every field of every written step and every particle series finite."""
         with h5py.File(self.h5, "r") as h5:
-            arrays = [ds[()] for g in h5["fields"].values() for ds in g.values()]
+            # every dataset below /fields, the disks of each field group included
+            arrays: list[np.ndarray] = []
+            h5["fields"].visititems(
+                lambda _, d: arrays.append(d[()]) if isinstance(d, h5py.Dataset) else None
+            )
             arrays += [h5["particles"][k][()] for k in h5["particles"]]
         return all(np.all(np.isfinite(a)) for a in arrays)
 
