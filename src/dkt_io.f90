@@ -1205,9 +1205,9 @@ contains
   !> Create dataset `name` of type `htype` and dimensions `dims` (Fortran order) in `loc`, with
   !! the string attribute `units` unless that is '', and write this rank's block (start, count)
   !! from `buf` (product(count) values of type `htype`, first index fastest) collectively; an
-  !! empty block takes part with nothing selected. A `chunked` dataset is shuffled and deflated
-  !! at level io%compress when that is > 0 (parallel HDF5 writes filtered datasets collectively only,
-  !! as here).
+  !! empty block takes part with nothing selected. A `chunked` dataset is shuffled and
+  !! deflated at level io%compress when that is > 0 (parallel HDF5 writes filtered datasets
+  !! collectively only, as here).
   subroutine put_dataset(io, loc, name, htype, dims, start, count, buf, units, chunked)
     type(io_t), intent(in) :: io
     integer(hid_t), intent(in) :: loc, htype

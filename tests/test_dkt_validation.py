@@ -28,7 +28,8 @@ def test_case0_box_drafts_kisses_and_tumbles_like_the_published_runs(tmp_path: P
         y = h5["particles/y"][()]
         diag = h5["diagnostics"]
         dr = diag["dr"][()]
-        pattern = diag.attrs["pattern"].decode()
+        pattern = diag.attrs["pattern"]  # str; bytes in files before version 0.2.0
+        pattern = pattern.decode() if isinstance(pattern, bytes) else str(pattern)
         starts = diag["episodes/start"][()]
         ends = diag["episodes/end"][()]
         enter = float(diag.attrs["kiss_enter"])
