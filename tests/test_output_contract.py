@@ -276,25 +276,26 @@ def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -
 PAIR_SETS = ["lbm.cells_per_diameter=8", "run.t_end=0.02", "output.field_interval=0.01"]
 
 
+def run_pair(out: Path, sets: list[str], extra: tuple[str, ...] = ()) -> Path:
+    """input/case1.nml on RANKS ranks with the --set overrides `sets` (and the further
+    arguments `extra`) into `out`; returns its run file."""
+    args = [str(INPUT / "case1.nml"), "--set", f"output.dir={out}", *extra]
+    for s in sets:
+        args += ["--set", s]
+    proc = run_args(args, RANKS, TIMEOUT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return out / "case1.h5"
+
+
 @pytest.fixture(scope="module")
 def pair_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
     """The pair run twice on 2 ranks: output.compress = 0 (the default) and 6."""
-    out = {}
-    for level in (0, 6):
-        d = tmp_path_factory.mktemp(f"compress{level}")
-        args = [
-            str(INPUT / "case1.nml"),
-            "--set",
-            f"output.dir={d}",
-            "--set",
-            f"output.compress={level}",
-        ]
-        for s in PAIR_SETS:
-            args += ["--set", s]
-        proc = run_args(args, RANKS, TIMEOUT)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        out[level] = d / "case1.h5"
-    return out
+    return {
+        level: run_pair(
+            tmp_path_factory.mktemp(f"compress{level}"), [*PAIR_SETS, f"output.compress={level}"]
+        )
+        for level in (0, 6)
+    }
 
 
 def datasets(f: h5py.File) -> list[str]:
@@ -399,26 +400,15 @@ def test_restart_continues_a_run_file_of_version_0_1(tmp_path: Path) -> None:
     /run or a field group only in the new layout, or a sidecar that lists absent disks."""
     sets = ["lbm.cells_per_diameter=8", "output.field_interval=0.0078125"]  # 10 steps
 
-    def go(out: Path, steps: int, extra: list[str]) -> None:
-        args = [
-            str(INPUT / "case1.nml"),
-            "--set",
-            f"output.dir={out}",
-            "--set",
-            f"run.steps={steps}",
-            *extra,
-        ]
-        for s in sets:
-            args += ["--set", s]
-        proc = run_args(args, RANKS, TIMEOUT)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
+    def go(out: Path, steps: int, extra: tuple[str, ...] = ()) -> None:
+        run_pair(out, [*sets, f"run.steps={steps}"], extra)
 
     whole = tmp_path / "whole"
-    go(whole, 40, [])
+    go(whole, 40)
     out = tmp_path / "resumed"
-    go(out, 20, ["--set", "run.checkpoint_every=20"])
+    go(out, 20, ("--set", "run.checkpoint_every=20"))
     make_old_style(out / "case1.h5")
-    go(out, 40, ["--restart", str(out / "case1_chk_000000020.h5")])
+    go(out, 40, ("--restart", str(out / "case1_chk_000000020.h5")))
     with h5py.File(whole / "case1.h5", "r") as a, h5py.File(out / "case1.h5", "r") as b:
         names = datasets(a)
         assert sorted(b["fields"]) == sorted(a["fields"]) == [f"{s:06d}" for s in range(0, 41, 10)]
