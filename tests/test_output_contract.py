@@ -276,25 +276,26 @@ def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -
 PAIR_SETS = ["lbm.cells_per_diameter=8", "run.t_end=0.02", "output.field_interval=0.01"]
 
 
+def run_pair(out: Path, sets: list[str], extra: tuple[str, ...] = ()) -> Path:
+    """input/case1.nml on RANKS ranks with the --set overrides `sets` (and the further
+    arguments `extra`) into `out`; returns its run file."""
+    args = [str(INPUT / "case1.nml"), "--set", f"output.dir={out}", *extra]
+    for s in sets:
+        args += ["--set", s]
+    proc = run_args(args, RANKS, TIMEOUT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return out / "case1.h5"
+
+
 @pytest.fixture(scope="module")
 def pair_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
     """The pair run twice on 2 ranks: output.compress = 0 (the default) and 6."""
-    out = {}
-    for level in (0, 6):
-        d = tmp_path_factory.mktemp(f"compress{level}")
-        args = [
-            str(INPUT / "case1.nml"),
-            "--set",
-            f"output.dir={d}",
-            "--set",
-            f"output.compress={level}",
-        ]
-        for s in PAIR_SETS:
-            args += ["--set", s]
-        proc = run_args(args, RANKS, TIMEOUT)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        out[level] = d / "case1.h5"
-    return out
+    return {
+        level: run_pair(
+            tmp_path_factory.mktemp(f"compress{level}"), [*PAIR_SETS, f"output.compress={level}"]
+        )
+        for level in (0, 6)
+    }
 
 
 def datasets(f: h5py.File) -> list[str]:
@@ -348,9 +349,9 @@ def test_integers_are_integers_and_strings_variable_length_utf8(pair_runs) -> No
 
 
 def test_compressed_snapshots_hold_the_same_values_in_fewer_bytes(pair_runs) -> None:
-    """output.compress = 6 deflates every field dataset (chunked, gzip level 6) and changes no
-    value: each dataset equals the uncompressed run's bit for bit, and the field datasets
-    take fewer bytes on disk."""
+    """output.compress = 6 deflates every field dataset (chunked, shuffled, gzip level 6) and
+    changes no value: each dataset equals the uncompressed run's bit for bit, and the field
+    datasets take fewer bytes on disk."""
     with h5py.File(pair_runs[0], "r") as a, h5py.File(pair_runs[6], "r") as b:
         assert datasets(a) == datasets(b)
         stored = {0: 0, 6: 0}
@@ -359,6 +360,75 @@ def test_compressed_snapshots_hold_the_same_values_in_fewer_bytes(pair_runs) -> 
             if n.startswith("fields/") and "/particles/" not in n:
                 assert a[n].compression is None, n
                 assert b[n].compression == "gzip" and b[n].compression_opts == 6, n
+                assert b[n].shuffle, n
                 stored[0] += a[n].id.get_storage_size()
                 stored[6] += b[n].id.get_storage_size()
         assert stored[6] < stored[0] / 2, stored
+
+
+def make_old_style(path: Path) -> None:
+    """Rewrite a run file as version 0.1.0 wrote it: integer /run attributes as reals, strings
+    as fixed-length bytes, no units attributes, the `particle` field float64 and no
+    `particles` sub-group in the field groups."""
+    with h5py.File(path, "r+") as f:
+
+        def plain(obj) -> None:
+            for key in list(obj.attrs):
+                value = obj.attrs[key]
+                if key == "units" or key.endswith("_units"):
+                    del obj.attrs[key]
+                elif isinstance(value, str):
+                    obj.attrs[key] = np.bytes_(value.encode())
+
+        f.visititems(lambda _, o: plain(o))
+        plain(f["run"])
+        for key in ("nx", "ny", "steps"):
+            f["run"].attrs[key] = float(f["run"].attrs[key])
+        for g in f["fields"].values():
+            del g["particles"]
+            particle = g["particle"][()].astype(np.float64)
+            del g["particle"]
+            g["particle"] = particle
+
+
+def test_restart_continues_a_run_file_of_version_0_1(tmp_path: Path) -> None:
+    """A run of the pair stopped at step 20 with a checkpoint, its run file rewritten as
+    version 0.1.0 wrote it (make_old_style), resumed to step 40: the resume succeeds, every
+    dataset equals the uninterrupted run's (the old `particle` fields by value), the old
+    snapshots keep their float64 `particle` and the new ones are int16 with their disks, and
+    the sidecar describes each snapshot with the dtype it has. Catches a restart that reads
+    /run or a field group only in the new layout, or a sidecar that lists absent disks."""
+    sets = ["lbm.cells_per_diameter=8", "output.field_interval=0.0078125"]  # 10 steps
+
+    def go(out: Path, steps: int, extra: tuple[str, ...] = ()) -> None:
+        run_pair(out, [*sets, f"run.steps={steps}"], extra)
+
+    whole = tmp_path / "whole"
+    go(whole, 40)
+    out = tmp_path / "resumed"
+    go(out, 20, ("--set", "run.checkpoint_every=20"))
+    make_old_style(out / "case1.h5")
+    go(out, 40, ("--restart", str(out / "case1_chk_000000020.h5")))
+    with h5py.File(whole / "case1.h5", "r") as a, h5py.File(out / "case1.h5", "r") as b:
+        names = datasets(a)
+        assert sorted(b["fields"]) == sorted(a["fields"]) == [f"{s:06d}" for s in range(0, 41, 10)]
+        for n in names:
+            if n.endswith("/particle"):
+                np.testing.assert_array_equal(a[n][()], b[n][()], err_msg=n)
+            elif "/particles/" in n and n.startswith("fields/") and int(n[7:13]) <= 20:
+                assert n not in b, f"{n}: an old snapshot got disks"
+            else:
+                assert a[n][()].tobytes() == b[n][()].tobytes(), n
+        for step, dtype in ((0, np.float64), (10, np.float64), (30, np.int16), (40, np.int16)):
+            assert b[f"fields/{step:06d}/particle"].dtype == dtype, step
+    root = ET.parse(out / "case1.xdmf").getroot()
+    collections = [g for g in root.iter("Grid") if g.get("CollectionType") == "Spatial"]
+    assert len(collections) == 5
+    for coll in collections:
+        step = int(coll.get("Name").split()[1])
+        grids = [g.get("Name") for g in coll.findall("Grid")]
+        assert grids == (["fields"] if step <= 20 else ["fields", "particles"]), (step, grids)
+        item = next(a for a in coll.iter("Attribute") if a.get("Name") == "particle")
+        item = item.find("DataItem")
+        expect = ("Float", "8") if step <= 20 else ("Int", "2")
+        assert (item.get("NumberType"), item.get("Precision")) == expect, step
