@@ -29,6 +29,7 @@ import h5py
 import pytest
 
 from dkt_run import EXE, INPUT, ROOT, mpi_env, number_after, run_args, tree_digest
+from dktlbm.read import text_attr
 
 RANKS = 2
 TIMEOUT = 10.0  # s; every one of these stops before time-stepping, a hang fails the test
@@ -895,7 +896,7 @@ def test_a_prescribed_particle_leaving_the_window_stops_the_run_naming_it(
     # the stop is collective like a guard's: the output is kept up to that step and says why
     with h5py.File(outdir / "single.h5", "r") as h5:
         reason = h5["run"].attrs["stop_reason"]
-        reason = reason.decode() if isinstance(reason, bytes) else str(reason)
+        reason = text_attr(reason)
         assert reason.startswith("particle: ") and "particle 2" in reason, reason
         assert h5["particles/t"][-1] == pytest.approx(t, rel=1e-9)
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from dkt_run import INPUT, run_args
+from dktlbm.read import text_attr
 
 RANKS = 2
 TIMEOUT = 20.0  # s; the runs below stop within a few steps
@@ -205,6 +206,6 @@ def test_a_guard_failing_on_every_rank_prints_once(tmp_path: Path) -> None:
 
     with h5py.File(tmp_path / "o" / "taylor_green.h5", "r") as h5:
         reason = h5["run"].attrs["stop_reason"]
-        reason = reason.decode() if isinstance(reason, bytes) else str(reason)
+        reason = text_attr(reason)
         assert reason == "guard: " + msg, reason
         assert "000001" in h5["fields"], list(h5["fields"])

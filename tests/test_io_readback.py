@@ -29,6 +29,8 @@ import h5py
 import numpy as np
 import pytest
 
+from dktlbm import launch
+
 # The contract with tests/test_io.f90: grid, spacing, field names and the two snapshots
 # (step -> (time in s, window offset in cm)).
 NX, NY = 5, 7
@@ -67,7 +69,8 @@ def expected_t() -> np.ndarray:
     return np.arange(1, NSAMPLES + 1) / 8.0
 
 
-def _text(value: object) -> str:
+def exact_text(value: object) -> str:
+    """A string attribute as written, byte for byte (dktlbm.read.text_attr trims blanks)."""
     return value.decode() if isinstance(value, (bytes, np.bytes_)) else str(value)
 
 
@@ -76,15 +79,11 @@ def run_writer(nranks: int, outdir: Path, *args: str) -> subprocess.CompletedPro
     exe = os.environ.get("DKT_TEST_IO_EXE")
     if not exe:
         pytest.skip("DKT_TEST_IO_EXE is not set (run through ctest)")
-    mpiexec = os.environ.get("MPIEXEC") or "mpiexec"
-    if shutil.which(mpiexec) is None:
-        pytest.fail(f"mpiexec not found: {mpiexec!r} (set MPIEXEC)")
-    np_flag = os.environ.get("MPIEXEC_NUMPROC_FLAG") or "-n"
-    # ctest passes the flags that fit this MPI (empty for MPICH); Open MPI needs --oversubscribe
-    # to start more ranks than cores.
-    preflags = os.environ.get("MPIEXEC_PREFLAGS", "--oversubscribe").split()
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    cmd = [mpiexec, np_flag, str(nranks), *preflags, exe, str(outdir), *args]
+    prefix = launch.mpi_prefix(nranks)
+    if shutil.which(prefix[0]) is None:
+        pytest.fail(f"mpiexec not found: {prefix[0]!r} (set MPIEXEC)")
+    cmd = [*prefix, exe, str(outdir), *args]
+    env = launch.mpi_env()
     return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
 
 
@@ -131,14 +130,14 @@ def test_field_groups_carry_time_step_and_window_offset(runs, nranks):
 def test_run_group_holds_configuration_provenance_and_parameters(runs, nranks):
     with h5py.File(runs[nranks] / "io_fields.h5", "r") as f:
         attrs = f["run"].attrs
-        assert _text(attrs["namelist"]) == "&lbm\n  tau = 0.65\n/\n"
-        assert _text(attrs["version"]) == "0.1.0"
-        assert _text(attrs["git_revision"]) == "abc1234"
+        assert exact_text(attrs["namelist"]) == "&lbm\n  tau = 0.65\n/\n"
+        assert exact_text(attrs["version"]) == "0.1.0"
+        assert exact_text(attrs["git_revision"]) == "abc1234"
         assert attrs["ranks"] == nranks
-        assert _text(attrs["compiler"]).strip()  # compiler_version(): never empty
+        assert exact_text(attrs["compiler"]).strip()  # compiler_version(): never empty
         assert "compiler_flags" in attrs  # compiler_options() may be empty
         assert attrs["dx"] == DX
-        assert _text(attrs["dx_units"]) == "cm"
+        assert exact_text(attrs["dx_units"]) == "cm"
         # integers as integers
         assert attrs["nx"] == NX and attrs.get_id("nx").dtype.kind == "i"
         assert attrs["ny"] == NY and attrs.get_id("ny").dtype.kind == "i"

@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from dkt_run import INPUT, ROOT, run_args
+from dktlbm.read import text_attr
 
 RANKS = 2
 TIMEOUT = 120.0
@@ -72,9 +73,8 @@ def expected_steps() -> list[int]:
     return sorted({*range(0, STEPS + 1, every), STEPS})
 
 
-def text_attr(h5, name: str) -> str:
-    v = h5["run"].attrs[name]
-    return (v.decode() if isinstance(v, bytes) else str(v)).rstrip("\0")
+def run_text(h5, name: str) -> str:
+    return text_attr(h5["run"].attrs[name])
 
 
 def num_attr(obj, name: str) -> float:
@@ -112,7 +112,7 @@ def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
     run = h5["run"]
     for key in ("namelist", "version", "git_revision", "compiler", "compiler_flags", "ranks"):
         assert key in run.attrs, key
-    nml = text_attr(h5, "namelist")
+    nml = run_text(h5, "namelist")
     # the values given by --set, in their groups
     groups = dict(re.findall(r"&(\w+)(.*?)\n/", nml, re.S))
     for setting in SETS:
@@ -133,11 +133,11 @@ def test_run_attributes_describe_the_run(h5, tmp_path: Path) -> None:
     version = run_args(["--version"], 1, 60.0, tmp_path).stdout.strip()
     cmake = (ROOT / "CMakeLists.txt").read_text()
     project = re.search(r"project\(\s*dktlbm\s+VERSION\s+([0-9.]+)", cmake)
-    assert project and text_attr(h5, "version") == project.group(1)
-    assert version == f"dktlbm {text_attr(h5, 'version')} ({text_attr(h5, 'git_revision')})"
+    assert project and run_text(h5, "version") == project.group(1)
+    assert version == f"dktlbm {run_text(h5, 'version')} ({run_text(h5, 'git_revision')})"
     assert int(np.asarray(run.attrs["ranks"]).ravel()[0]) == RANKS
-    assert text_attr(h5, "compiler").strip() and re.search(r"\d", text_attr(h5, "compiler"))
-    assert text_attr(h5, "compiler_flags").strip()
+    assert run_text(h5, "compiler").strip() and re.search(r"\d", run_text(h5, "compiler"))
+    assert run_text(h5, "compiler_flags").strip()
 
     s_nu = 1.0 / TAU
     lattice = {

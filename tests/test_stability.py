@@ -31,6 +31,7 @@ import numpy as np
 import pytest
 
 from dkt_run import INPUT, run_args
+from dktlbm.read import text_attr
 
 TIMEOUT = 60.0  # s per run; each below takes a few seconds on 2 busy cores
 ALL = os.environ.get("DKTLBM_STABILITY") == "all"
@@ -66,7 +67,7 @@ class Outcome:
     def attr(self, name: str) -> str:
         with h5py.File(self.h5, "r") as h5:
             value = h5["run"].attrs[name]
-        return value.decode() if isinstance(value, bytes) else str(value)
+        return text_attr(value)
 
     def particles(self) -> dict[str, np.ndarray]:
         with h5py.File(self.h5, "r") as h5:

@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 from dkt_run import INPUT, ROOT, run, run_args, sigterm_when_logged
+from dktlbm.read import text_attr
 
 RANKS = 2
 GUARD_RE = re.compile(
@@ -42,16 +43,12 @@ CASE0 = ["lbm.cells_per_diameter=10", "output.series_interval=0.01", "output.fie
          "run.mach_limit=0.6"]
 
 
-def text(value: object) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
-
-
 def read_output(out: Path, name: str) -> dict[str, object]:
     """stop_reason, dt, /particles/t, /diagnostics/t of the run file, the CSV rows (header
     excluded) and the log. Opening the file with h5py proves that it was closed cleanly."""
     with h5py.File(out / f"{name}.h5", "r") as h5:
         got = {
-            "stop_reason": text(h5["run"].attrs["stop_reason"]),
+            "stop_reason": text_attr(h5["run"].attrs["stop_reason"]),
             "dt": float(h5["run"].attrs["dt"]),
             "t": h5["particles/t"][()],
             "diag_t": h5["diagnostics/t"][()],
@@ -224,7 +221,7 @@ def test_a_marker_that_cannot_be_written_stops_the_run_loudly(tmp_path: Path, ma
     errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("dktlbm: error")]
     assert len(errors) == 1 and f"{out}/case0.{marker}" in errors[0], proc.stderr
     with h5py.File(out / "case0.h5", "r") as h5:
-        reason = text(h5["run"].attrs["stop_reason"])
+        reason = text_attr(h5["run"].attrs["stop_reason"])
     if marker == "checkpoint":
         assert reason.startswith("error: cannot write the marker file"), reason
     else:
