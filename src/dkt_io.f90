@@ -17,7 +17,7 @@
 !> the same metadata (names, times, shapes); the field rows differ between ranks, and of series,
 !> tables and attributes only rank 0's values are stored.
 module dkt_io
-  use iso_c_binding, only: c_null_char, c_ptr, c_loc, c_int, c_size_t
+  use iso_c_binding, only: c_null_char, c_ptr, c_loc, c_int, c_int64_t, c_size_t
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, mpi_wp
   use dkt_errors, only: fatal_local
@@ -124,10 +124,12 @@ module dkt_io
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
 
   interface
-    !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1
+    !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1. hid_t is the C
+    !! library's int64_t (HDF5 >= 1.10); integer(hid_t) is the same kind but not declared
+    !! interoperable, so the identifier is passed as c_int64_t.
     integer(c_int) function h5tset_size_variable(type_id, size) bind(c, name='H5Tset_size')
-      import :: c_int, c_size_t, hid_t
-      integer(hid_t), value :: type_id
+      import :: c_int, c_int64_t, c_size_t
+      integer(c_int64_t), value :: type_id
       integer(c_size_t), value :: size
     end function h5tset_size_variable
   end interface
@@ -1138,7 +1140,7 @@ contains
     else
       ! the Fortran wrapper of H5Tset_size cannot pass H5T_VARIABLE, (size_t) -1
       call h5tcopy_f(H5T_NATIVE_CHARACTER, atype, e(1))
-      e(2) = min(0, int(h5tset_size_variable(atype, -1_c_size_t)))
+      e(2) = min(0, int(h5tset_size_variable(int(atype, c_int64_t), -1_c_size_t)))
       call h5tset_cset_f(atype, H5T_CSET_UTF8_F, e(3))
       call check(minval(e), 'h5tcopy_f/H5Tset_size/h5tset_cset_f('//name//')', io%path)
     end if
