@@ -5,3 +5,7 @@
 # repeats no sample. About 20 short jobs on 2 ranks.
 dkt_add_pytest(NAME faults_checkpoint FILE tests/test_faults_chk.py LABELS mpi regression
   PROCESSORS 2 TIMEOUT 600)
+# The window's follow loop is bounded: NaN, -Infinity and absurd positions return (a hang here
+# fails by the timeout).
+dkt_add_fortran_test(NAME test_window_follow SOURCES dkt_check.f90 test_window_follow.f90
+  LABELS unit NO_MPIEXEC TIMEOUT 30)
