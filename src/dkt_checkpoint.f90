@@ -30,11 +30,11 @@ module dkt_checkpoint
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
                      MPI_INTEGER, MPI_MIN, MPI_CHARACTER
   use hdf5, only: hsize_t
-  use ieee_arithmetic, only: ieee_is_finite
+  use ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_is_negative
   use dkt_kinds, only: wp, sp
   use dkt_store, only: lattice_t, lattice_precision_name
   use dkt_filesystem, only: rename_file
-  use dkt_registry, only: itoa, fmt_real
+  use dkt_registry, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
   use dkt_config, only: MAX_PARTICLES
   use dkt_io, only: io_file_t, io_file_open, io_file_close, io_put_real, &
@@ -380,7 +380,7 @@ contains
       p = ''
       if (.not. all(ieee_is_finite(chk%particles))) then
         at = findloc(ieee_is_finite(chk%particles), .false.)
-        p = '/particles holds the value '//fmt_real(chk%particles(at(1), at(2)))// &
+        p = '/particles holds the value '//non_finite_text(chk%particles(at(1), at(2)))// &
             ' for particle '//itoa(at(2))//' (quantity '//itoa(at(1))// &
             ' of x, y, u, v, omega, fx, fy, torque, cx, cy)'
       else if (.not. all(ieee_is_finite(ep))) then
@@ -396,7 +396,7 @@ contains
       p = ''
       if (all(ieee_is_finite(b))) return
       at = findloc(ieee_is_finite(b), .false.)
-      p = '/f holds the value '//fmt_real(b(at(1), at(2), at(3) - 1))//' at x = '// &
+      p = '/f holds the value '//non_finite_text(b(at(1), at(2), at(3) - 1))//' at x = '// &
           itoa(at(1))//', row '//itoa(y0 + at(2))//', population '//itoa(at(3) - 1)
     end function non_finite_population
 
@@ -414,6 +414,20 @@ contains
       end do
     end function row_mismatch
   end subroutine checkpoint_read
+
+  !> 'NaN', 'Infinity' or '-Infinity', the text of a value that is not finite (without an ordered
+  !! comparison, which traps on NaN in the checked build).
+  pure function non_finite_text(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    if (ieee_is_nan(x)) then
+      s = 'NaN'
+    else if (ieee_is_negative(x)) then
+      s = '-Infinity'
+    else
+      s = 'Infinity'
+    end if
+  end function non_finite_text
 
   !> Every rank gets the message `what` of the lowest rank whose `what` is not ''.
   subroutine agree(what, comm)
