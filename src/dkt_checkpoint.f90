@@ -12,7 +12,13 @@
 !> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
 !>   in 4 bytes), 2 'single_unshifted'; absent in checkpoints written before single storage
 !>   existed, which are 'double'. /f holds the stored values exactly (a 4-byte value converts
-!>   to 8 bytes and back without change), so a single-precision run resumes bit for bit too.
+!>   to 8 bytes and back without change), so a single-precision run resumes bit for bit too;
+!> - /f_checksum (h5py (ny, 2)): a digest of each row of /f, and /state_checksum (2): one of
+!>   every other dataset (the values of /state_int, /state_real, /particles, /episodes, /given,
+!>   /precision in this order). A digest is two sums modulo the prime 2^32 - 5 over the 32-bit
+!>   words of the 8-byte values (Fletcher's checksum), stored as reals (exact below 2^53). A row
+!>   is the unit, so any number of ranks writes and checks the same digests. Absent in
+!>   checkpoints written before they existed, which are read with a warning.
 !>
 !> A checkpoint is written to `<file>.tmp` and renamed when complete, so a failed write (disk
 !> full, directory gone) never damages the previous checkpoint. A checkpoint is read only after
@@ -20,9 +26,11 @@
 !> scene and sane bounds), so a damaged file is refused before anything is allocated from it.
 !> The HDF5 calls are dkt_io's.
 module dkt_checkpoint
-  use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank
+  use iso_fortran_env, only: int64
+  use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
+                     MPI_INTEGER, MPI_MIN, MPI_CHARACTER
   use hdf5, only: hsize_t
-  use ieee_arithmetic, only: ieee_is_finite
+  use ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_is_negative
   use dkt_kinds, only: wp, sp
   use dkt_store, only: lattice_t, lattice_precision_name
   use dkt_filesystem, only: rename_file
@@ -55,6 +63,7 @@ module dkt_checkpoint
     logical :: in_episode = .false.
     real(wp), allocatable :: t_start(:), t_end(:), gap_min(:) !! the episodes so far
     integer :: precision = 0       !! how /f is stored: its index in STORAGE_NAMES
+    logical :: checksums = .false. !! its values were checked against stored digests
   end type checkpoint_t
 
 contains
@@ -124,6 +133,16 @@ contains
     end do
     call io_put_int(pf, 'given', codes)
     call io_put_int(pf, 'precision', [storage_code(f)])
+    call io_put_real(pf, 'f_checksum', [integer(hsize_t) :: 2, chk%ny], &
+                     [integer(hsize_t) :: 0, y0], [integer(hsize_t) :: 2, nyl], &
+                     row_digests(buf), .true.)
+    call io_put_real(pf, 'state_checksum', [integer(hsize_t) :: 2], [integer(hsize_t) :: 0], &
+                     [integer(hsize_t) :: 2], &
+                     state_digest([chk%step, chk%shift, chk%samples, chk%nx, chk%ny, &
+                                   size(chk%particles, 2), ne, merge(1, 0, chk%in_episode), &
+                                   len(given)], [chk%dx, chk%dt], chk%particles, &
+                                  reshape([chk%t_start, chk%t_end, chk%gap_min], [ne, 3]), codes, &
+                                  storage_code(f)), rank == 0)
     call io_file_close(pf, err)
     if (len(err) > 0) then
       err = 'writing checkpoint file '''//tmp//''' failed ('//err//'); is the disk full?'
@@ -137,12 +156,13 @@ contains
   end subroutine checkpoint_write
 
   !> Read the checkpoint at `path`: its state into `chk` and, when its lattice is nx x ny, it
-  !! holds np particles and its populations are stored as f stores them, its particles and the
-  !! rows y0+1..y0+nyl of its populations into rows 1..nyl, columns 1..nx of f (the caller
-  !! refuses a checkpoint of another lattice, particle count or storage, from chk%nx, ny, np,
-  !! precision). Every size and count is checked against the datasets' shapes
-  !! and sane bounds before it is used. err is '' on success, else the same message on every
-  !! rank.
+  !! holds np particles and its populations are stored as f stores them, the rows y0+1..y0+nyl
+  !! of its populations into rows 1..nyl, columns 1..nx of f (the caller refuses a checkpoint of
+  !! another lattice, particle count or storage, from chk%nx, ny, np, precision). Every size
+  !! and count is checked against the datasets' shapes and sane bounds before it is used, every
+  !! value against its digest (when the file has digests), and the particles, episodes and
+  !! populations must be finite. err is '' on success, else the same message on every rank,
+  !! naming the file, the dataset and the value.
   subroutine checkpoint_read(path, comm, f, nx, ny, nyl, y0, np, chk, err)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
@@ -155,8 +175,9 @@ contains
     integer :: ints(NINT), ne, nd, code(1)
     integer(hsize_t) :: dims(3)
     logical :: exists, any_bad, foreign
-    real(wp) :: rr(2)
-    real(wp), allocatable :: buf(:, :, :), ep(:, :)
+    real(wp) :: rr(2), sums(2)
+    real(wp), allocatable :: buf(:, :, :), ep(:, :), rows(:, :)
+    integer, allocatable :: codes(:)
     character(len=:), allocatable :: what, close_err
     character(len=160) :: msg
 
@@ -204,6 +225,7 @@ contains
     if (len(what) == 0) what = header_problem()
     ! the storage of /f; a checkpoint without /precision was written in 8 bytes
     chk%precision = 0
+    code = 0
     if (len(what) == 0) then
       call io_dataset_dims(pf, 'precision', nd, dims)
       if (nd == 1 .and. dims(1) == 1) then
@@ -216,37 +238,58 @@ contains
         what = 'a /precision that is not one integer'
       end if
     end if
-    ! the populations and particles only when they are this run's; the caller says why not
-    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. chk%np == np .and. &
-        chk%precision == storage_code(f)) then
-      allocate (chk%particles(NSTATE, np), ep(ne, 3))
-      if (np > 0) call io_get_real(pf, 'particles', [integer(hsize_t) :: 0, 0], &
-                                   [integer(hsize_t) :: NSTATE, np], chk%particles)
+    ! the digests: both or none (a checkpoint written before they existed)
+    if (len(what) == 0) what = checksum_shapes()
+    ! the small datasets, whose counts the header gave and their shapes confirmed
+    if (len(what) == 0) then
+      allocate (chk%particles(NSTATE, chk%np), ep(ne, 3), codes(max(1, ints(9))))
+      if (chk%np > 0) call io_get_real(pf, 'particles', [integer(hsize_t) :: 0, 0], &
+                                       [integer(hsize_t) :: NSTATE, chk%np], chk%particles)
       if (ne > 0) call io_get_real(pf, 'episodes', [integer(hsize_t) :: 0, 0], &
                                    [integer(hsize_t) :: ne, 3], ep)
+      codes = 32
+      if (chk%checksums) then
+        call io_get_int(pf, 'given', codes)
+        call io_get_real(pf, 'state_checksum', [0_hsize_t], [2_hsize_t], sums)
+        if (len(pf%failed) == 0 .and. &
+            any(sums /= state_digest(ints, rr, chk%particles, ep, codes, code(1)))) &
+          what = 'its state (/state_int, /state_real, /particles, /episodes, /given, '// &
+                 '/precision) does not match /state_checksum'
+      end if
+      if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_state()
       chk%t_start = ep(:, 1)
       chk%t_end = ep(:, 2)
       chk%gap_min = ep(:, 3)
+    else
+      allocate (chk%particles(NSTATE, 0), chk%t_start(0), chk%t_end(0), chk%gap_min(0))
+    end if
+    ! the populations only when they are this run's; the caller says why not
+    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. &
+        chk%precision == storage_code(f)) then
       allocate (buf(nx, nyl, 0:8))
       call io_get_real(pf, 'f', [integer(hsize_t) :: 0, y0, 0], &
                        [integer(hsize_t) :: nx, nyl, 9], buf)
-      if (f%single) then
+      if (chk%checksums .and. len(pf%failed) == 0) then
+        allocate (rows(2, nyl))
+        call io_get_real(pf, 'f_checksum', [integer(hsize_t) :: 0, y0], &
+                         [integer(hsize_t) :: 2, nyl], rows)
+        if (len(pf%failed) == 0) what = row_mismatch(rows, row_digests(buf))
+      end if
+      if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_population(buf)
+      if (len(what) > 0) then
+        ! refused: f keeps what it held
+      else if (f%single) then
         ! the values were 4-byte ones: the conversion back is exact
         f%s(1:nx, 1:nyl, 0:8) = real(buf, sp)
       else
         f%d(1:nx, 1:nyl, 0:8) = buf
       end if
-      if (len(pf%failed) == 0) then
-        if (.not. all(ieee_is_finite(chk%particles)) .or. .not. all(ieee_is_finite(ep))) &
-          what = 'non-finite particle or episode values'
-      end if
-    else
-      allocate (chk%particles(NSTATE, 0), chk%t_start(0), chk%t_end(0), chk%gap_min(0))
     end if
+    if (len(what) == 0 .and. len(pf%failed) > 0) what = 'its datasets cannot be read'
     call io_file_close(pf, close_err)
-    ! a problem seen on any rank is everyone's (the slabs read different rows)
-    call MPI_Allreduce(len(what) > 0, any_bad, 1, MPI_LOGICAL, MPI_LOR, comm)
-    if (any_bad .and. len(what) == 0) what = 'a damaged dataset on another rank'
+    ! a problem seen on any rank is everyone's (the slabs read different rows): the message
+    ! of the lowest rank that saw one
+    call agree(what, comm)
     if (foreign) then
       err = 'restart file '''//path//''' is not a dktlbm checkpoint (no /state_int)'
     else if (len(what) > 0) then
@@ -259,10 +302,18 @@ contains
     !! datasets' shapes (so nothing is allocated from a wrong count).
     function header_problem() result(p)
       character(len=:), allocatable :: p
+      integer(int64) :: last
+      ! step + 1, which a step of huge(0) must not overflow
+      last = int(chk%step, int64) + 1
       p = ''
-      if (chk%step < 0 .or. chk%samples < 0 .or. chk%samples > chk%step + 1) then
-        write (msg, '(a,i0,a,i0,a)') 'step ', chk%step, ' and samples ', chk%samples, &
-          ' (0 <= samples <= step + 1)'
+      if (chk%step < 0 .or. chk%samples < 0 .or. chk%samples > last) then
+        write (msg, '(a,i0,a,i0,a)') '/state_int holds step ', chk%step, ' and samples ', &
+          chk%samples, ' (0 <= samples <= step + 1)'
+        p = trim(msg)
+      else if (chk%shift < 0 .or. chk%shift > last) then
+        ! the window moves down only, and less than a row a step (run.particle_speed_limit <= 1)
+        write (msg, '(a,i0,a,i0,a)') '/state_int holds a window shift of ', chk%shift, &
+          ' rows at step ', chk%step, ' (0 to step + 1)'
         p = trim(msg)
       else if (chk%nx < 1 .or. chk%ny < 1) then
         write (msg, '(a,i0,a,i0)') 'a lattice of ', chk%nx, ' x ', chk%ny
@@ -270,15 +321,16 @@ contains
       else if (chk%np < 0 .or. chk%np > MAX_PARTICLES) then
         write (msg, '(a,i0,a,i0,a)') 'a particle count of ', chk%np, ' (0 to ', MAX_PARTICLES, ')'
         p = trim(msg)
-      else if (ne < 0 .or. ne > chk%step + 1) then
+      else if (ne < 0 .or. ne > last) then
         write (msg, '(a,i0,a)') 'an episode count of ', ne, ' (0 to step + 1)'
         p = trim(msg)
       else if (ints(8) /= 0 .and. ints(8) /= 1) then
         p = 'an in-episode flag other than 0 or 1'
       else if (ints(9) < 0) then
         p = 'a negative length of /given'
-      else if (.not. (ieee_is_finite(chk%dx) .and. ieee_is_finite(chk%dt) .and. &
-                      chk%dx > 0.0_wp .and. chk%dt > 0.0_wp)) then
+      else if (.not. (ieee_is_finite(chk%dx) .and. ieee_is_finite(chk%dt))) then
+        p = 'a lattice spacing or time step that is not a positive number'
+      else if (.not. (chk%dx > 0.0_wp .and. chk%dt > 0.0_wp)) then
         p = 'a lattice spacing or time step that is not a positive number'
       end if
       if (len(p) > 0) return
@@ -301,7 +353,141 @@ contains
       if (len(pf%failed) > 0) p = 'its datasets cannot be read'
     end function header_problem
 
+    !> Whether the file has digests (chk%checksums), and what is wrong with their shapes.
+    function checksum_shapes() result(p)
+      character(len=:), allocatable :: p
+      integer :: nd_f, nd_s, nd_g
+      integer(hsize_t) :: dims_f(3), dims_s(3), dims_g(3)
+      p = ''
+      call io_dataset_dims(pf, 'f_checksum', nd_f, dims_f)
+      call io_dataset_dims(pf, 'state_checksum', nd_s, dims_s)
+      call io_dataset_dims(pf, 'given', nd_g, dims_g)
+      chk%checksums = nd_f /= -1 .or. nd_s /= -1
+      if (.not. chk%checksums) return
+      if (nd_f /= 2 .or. dims_f(1) /= 2 .or. dims_f(2) /= chk%ny) then
+        p = 'no /f_checksum of 2 x '//itoa(chk%ny)//' digests'
+      else if (nd_s /= 1 .or. dims_s(1) /= 2) then
+        p = 'no /state_checksum of 2 digests'
+      else if (nd_g /= 1 .or. dims_g(1) /= max(1, ints(9))) then
+        p = '/given does not hold the '//itoa(ints(9))//' characters of its header'
+      end if
+    end function checksum_shapes
+
+    !> The first particle or episode value that is not finite, '' if none.
+    function non_finite_state() result(p)
+      character(len=:), allocatable :: p
+      integer :: at(2)
+      p = ''
+      if (.not. all(ieee_is_finite(chk%particles))) then
+        at = findloc(ieee_is_finite(chk%particles), .false.)
+        p = '/particles holds the value '//non_finite_text(chk%particles(at(1), at(2)))// &
+            ' for particle '//itoa(at(2))//' (quantity '//itoa(at(1))// &
+            ' of x, y, u, v, omega, fx, fy, torque, cx, cy)'
+      else if (.not. all(ieee_is_finite(ep))) then
+        p = '/episodes holds a value that is not finite'
+      end if
+    end function non_finite_state
+
+    !> The first population of this rank's rows that is not finite, '' if none.
+    function non_finite_population(b) result(p)
+      real(wp), intent(in) :: b(:, :, 0:)
+      character(len=:), allocatable :: p
+      integer :: at(3)
+      p = ''
+      if (all(ieee_is_finite(b))) return
+      at = findloc(ieee_is_finite(b), .false.)
+      p = '/f holds the value '//non_finite_text(b(at(1), at(2), at(3) - 1))//' at x = '// &
+          itoa(at(1))//', row '//itoa(y0 + at(2))//', population '//itoa(at(3) - 1)
+    end function non_finite_population
+
+    !> The first of this rank's rows whose digest differs from the stored one, '' if none.
+    function row_mismatch(stored, computed) result(p)
+      real(wp), intent(in) :: stored(:, :), computed(:, :)
+      character(len=:), allocatable :: p
+      integer :: j
+      p = ''
+      do j = 1, size(stored, 2)
+        if (all(stored(:, j) == computed(:, j))) cycle
+        p = '/f row '//itoa(y0 + j)//' does not match its digest in /f_checksum (a damaged '// &
+            'or altered value)'
+        return
+      end do
+    end function row_mismatch
   end subroutine checkpoint_read
+
+  !> 'NaN', 'Infinity' or '-Infinity', the text of a value that is not finite (without an ordered
+  !! comparison, which traps on NaN in the checked build).
+  pure function non_finite_text(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    if (ieee_is_nan(x)) then
+      s = 'NaN'
+    else if (ieee_is_negative(x)) then
+      s = '-Infinity'
+    else
+      s = 'Infinity'
+    end if
+  end function non_finite_text
+
+  !> Every rank gets the message `what` of the lowest rank whose `what` is not ''.
+  subroutine agree(what, comm)
+    character(len=:), allocatable, intent(inout) :: what
+    type(MPI_Comm), intent(in) :: comm
+    integer :: rank, owner, n
+    call MPI_Comm_rank(comm, rank)
+    call MPI_Allreduce(merge(rank, huge(0), len(what) > 0), owner, 1, MPI_INTEGER, MPI_MIN, &
+                       comm)
+    if (owner == huge(0)) return
+    n = len(what)
+    call MPI_Bcast(n, 1, MPI_INTEGER, owner, comm)
+    if (rank /= owner) then
+      deallocate (what)
+      allocate (character(len=n) :: what)
+    end if
+    call MPI_Bcast(what, n, MPI_CHARACTER, owner, comm)
+  end subroutine agree
+
+  !> The digests of the rows of b (x, row, population): row j's 9 nx values in the order
+  !! (x, population), as two sums each.
+  function row_digests(b) result(d)
+    real(wp), intent(in) :: b(:, :, 0:)
+    real(wp) :: d(2, size(b, 2))
+    integer :: j
+    do j = 1, size(b, 2)
+      d(:, j) = digest(reshape(b(:, j, :), [size(b, 1)*size(b, 3)]))
+    end do
+  end function row_digests
+
+  !> The digest of the state datasets as checkpoint_write stores them: the integers and the
+  !! character codes as reals (exact), then the reals.
+  function state_digest(ints, rr, particles, ep, codes, precision) result(d)
+    integer, intent(in) :: ints(:), codes(:), precision
+    real(wp), intent(in) :: rr(:), particles(:, :), ep(:, :)
+    real(wp) :: d(2)
+    d = digest([real(ints, wp), rr, reshape(particles, [size(particles)]), &
+                reshape(ep, [size(ep)]), real(codes, wp), real(precision, wp)])
+  end function state_digest
+
+  !> Fletcher's checksum of the 32-bit words of v: two sums modulo the prime 2^32 - 5, the
+  !! second of the running first, so that a changed, swapped or moved word changes the
+  !! digest. As reals: both are below 2^32, exact in 8 bytes.
+  pure function digest(v) result(d)
+    real(wp), intent(in) :: v(:)
+    real(wp) :: d(2)
+    integer(int64), parameter :: P = 4294967291_int64, LOW = 4294967295_int64
+    integer(int64) :: a, b, w
+    integer :: k
+    a = 1
+    b = 0
+    do k = 1, size(v)
+      w = transfer(v(k), w)
+      a = mod(a + iand(w, LOW), P)
+      b = mod(b + a, P)
+      a = mod(a + shiftr(w, 32), P)
+      b = mod(b + a, P)
+    end do
+    d = real([a, b], wp)
+  end function digest
 
   !> The /precision code of the storage of f.
   integer function storage_code(f) result(code)

@@ -6,7 +6,7 @@ module dkt_checkpoint_policy
   use mpi_f08, only: MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Iallreduce, MPI_Wait, MPI_Request, &
                      MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR
   use dkt_kinds, only: wp
-  use dkt_errors, only: fatal_all
+  use dkt_errors, only: fatal_all, warn
   use dkt_config, only: config_output_dir
   use dkt_particles, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
@@ -16,6 +16,7 @@ module dkt_checkpoint_policy
   use dkt_filesystem, only: remove_file, write_marker
   use dkt_registry, only: itoa
   use dkt_run_state, only: simulation_t, path_t
+  use dkt_restart_check, only: restart_problem
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
   use dkt_io, only: io_flush
@@ -170,6 +171,15 @@ contains
         ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
+    ! its values against the scene and the run file, before anything is cut or overwritten
+    err = restart_problem(sim, chk, path)
+    if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
+                                     'file '''//path//''' is damaged or not of this run: '// &
+                                     err//'; use an earlier checkpoint')
+    if (.not. chk%checksums) &
+      call warn('--restart '//path//': the checkpoint has no checksums (written by an earlier '// &
+                'version): its values were checked against their bounds, but a damaged '// &
+                'byte within them would go unnoticed')
     sim%step = chk%step
     sim%samples = chk%samples
     sim%win%shift = chk%shift

@@ -3,6 +3,7 @@
 !> boundaries, the particles and the window, the guards, then output, progress and checkpoints,
 !> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
 module dkt_simulation
+  use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
@@ -435,7 +436,10 @@ contains
     do k = 1, sim%parts%n
       what = ''
       associate (p => sim%parts%p(k))
-        if (p%x < 0.0_wp .or. p%x > nx) then
+        ! (first: an ordered comparison with NaN traps in the checked build)
+        if (.not. (ieee_is_finite(p%x) .and. ieee_is_finite(p%y))) then
+          what = 'its centre is not a finite number (the flow or the particle state is not)'
+        else if (p%x < 0.0_wp .or. p%x > nx) then
           what = 'its centre left the channel through a side'
         else if (p%y < 0.0_wp) then
           what = 'its centre passed the lower end'//trim(merge(' of the window', '              ', &

@@ -10,6 +10,7 @@
 !> point for coordinates >= 1), and every rank decides it from the same particle state, so a
 !> window run has the same bits on any number of ranks.
 module dkt_window
+  use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE
   use dkt_kinds, only: wp, sp, mpi_wp
   use dkt_lattice, only: equilibrium
@@ -51,17 +52,25 @@ contains
   !> Move the window down, a row at a time, until the lowest free particle is again within one
   !! spacing of `below` above the lower end. f holds the populations of rows 1..nyl between
   !! two steps; the caller finds the boundary links after it.
+  !!
+  !! The loop depends on the particle state, so it is bounded: a position that is not finite
+  !! (a flow gone NaN) moves nothing, and the window moves at most ny rows in a call (a particle
+  !! moves less than a spacing a step, run.particle_speed_limit); a particle left below the
+  !! lower end then stops the run (the caller's place check).
   subroutine window_follow(win, dom, ps, f)
     type(window_t), intent(inout) :: win
     type(domain_t), intent(in) :: dom
     type(particles_t), intent(inout) :: ps
     type(lattice_t), intent(inout) :: f
     real(wp) :: lowest
-    integer :: k
-    do
+    integer :: k, rows
+    do rows = 1, dom%ny
       lowest = huge(1.0_wp)
       do k = 1, ps%n
-        if (ps%p(k)%motion == MOTION_FREE) lowest = min(lowest, ps%p(k)%y)
+        if (ps%p(k)%motion /= MOTION_FREE) cycle
+        ! (tested first: an ordered comparison with NaN traps in the checked build)
+        if (.not. ieee_is_finite(ps%p(k)%y)) return
+        lowest = min(lowest, ps%p(k)%y)
       end do
       if (lowest >= win%below - 1.0_wp) exit
       call shift_rows(dom, f)
