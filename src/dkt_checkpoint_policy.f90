@@ -11,7 +11,7 @@ module dkt_checkpoint_policy
   use dkt_particles, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             NSTATE, STORAGE_NAMES
-  use dkt_signals, only: signals_install, signal_caught, SIGTERM
+  use dkt_signals, only: signals_install, signal_mask, signal_name
   use dkt_log, only: log_line
   use dkt_filesystem, only: remove_file, write_marker
   use dkt_registry, only: itoa
@@ -25,9 +25,12 @@ module dkt_checkpoint_policy
   public :: checkpoint_clock_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
             checkpoint_final, checkpoint_stop_message, checkpoint_resume
 
+  integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
+
   !> The ranks agree on the signal and clock flags with a reduction started one step earlier,
   !! so that no step waits for it; every rank acts on the same flags at the same step.
-  !! Bit 0: a signal arrived; bit 1: run.checkpoint_wall passed; bit 2: run.wall_limit passed.
+  !! Bit 0: a signal arrived; bit 1: run.checkpoint_wall passed; bit 2: run.wall_limit passed;
+  !! bits SIGNAL_SHIFT + s: signal s arrived (dkt_signals signal_mask).
   type :: checkpoint_clock_t
     integer :: flags_out = 0, flags_in = 0 !! buffers of the flag reduction in flight
     type(MPI_Request) :: request
@@ -69,9 +72,9 @@ contains
       call checkpoint_save(sim)
       sim%interrupted = .true.
       if (btest(flags, 0)) then
-        clock%reason = 'on signal '//trim(merge('SIGTERM', 'SIGUSR1', &
-                                                signal_caught() == SIGTERM .or. &
-                                                signal_caught() == 0))
+        ! the signals any rank caught, so that rank 0's log names one even when only
+        ! another rank was signalled
+        clock%reason = 'on signal '//signal_name(ishft(flags, -SIGNAL_SHIFT))
         sim%stop_reason = 'signal'
       else
         clock%reason = 'at run.wall_limit'
@@ -88,7 +91,8 @@ contains
       end if
     end if
     clock%flags_out = 0
-    if (signal_caught() /= 0) clock%flags_out = ibset(clock%flags_out, 0)
+    if (signal_mask() /= 0) clock%flags_out = ior(ibset(clock%flags_out, 0), &
+                                                  ishft(signal_mask(), SIGNAL_SHIFT))
     if (sim%dom%rank == 0) then
       if (sim%cfg%run%checkpoint_wall > 0.0_wp .and. &
           MPI_Wtime() - clock%t_checkpoint >= sim%cfg%run%checkpoint_wall) &

@@ -5,7 +5,7 @@ module dkt_errors
   use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Abort, MPI_Finalize, MPI_Initialized, &
                      MPI_Finalized
   use dkt_log, only: log_record, log_close
-  use dkt_registry, only: printable
+  use dkt_registry, only: printable, itoa
   implicit none
   private
   public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME
@@ -29,11 +29,7 @@ contains
     msg = printable_lines(text)
     status = EXIT_INPUT
     if (present(code)) status = code
-    if (this_rank(running) == 0) then
-      flush (output_unit)
-      write (error_unit, '(a)') 'dktlbm: error: '//msg
-      flush (error_unit)
-    end if
+    if (this_rank(running) == 0) call to_stderr('dktlbm: error: '//msg)
     if (running) call log_record('error: '//msg)
     call log_close()
     if (running) call MPI_Finalize()
@@ -52,9 +48,7 @@ contains
     msg = printable_lines(text)
     status = EXIT_RUNTIME
     if (present(code)) status = code
-    flush (output_unit)
-    write (error_unit, '(a,i0,a)') 'dktlbm: error [rank ', this_rank(running), ']: '//msg
-    flush (error_unit)
+    call to_stderr('dktlbm: error [rank '//itoa(this_rank(running))//']: '//msg)
     ! the log file is rank 0's; the other ranks' errors are on standard error only
     if (running) call log_record('error: '//msg)
     call log_close()
@@ -66,12 +60,19 @@ contains
   subroutine warn(msg)
     character(len=*), intent(in) :: msg
     logical :: running
-    if (this_rank(running) == 0) then
-      write (error_unit, '(a)') 'dktlbm: warning: '//msg
-      flush (error_unit)
-    end if
+    if (this_rank(running) == 0) call to_stderr('dktlbm: warning: '//msg)
     if (running) call log_record('warning: '//msg)
   end subroutine warn
+
+  !> One message on standard error, after what standard output holds so far. A console that
+  !! cannot be written (a closed pipe) is passed over: the log file has the message.
+  subroutine to_stderr(line)
+    character(len=*), intent(in) :: line
+    integer :: ios
+    flush (output_unit, iostat=ios)
+    write (error_unit, '(a)', iostat=ios) line
+    flush (error_unit, iostat=ios)
+  end subroutine to_stderr
 
   !> `text` with the non-printing bytes of each line escaped, the line breaks kept.
   function printable_lines(text) result(msg)

@@ -1,7 +1,8 @@
 !> The run log: lines from rank 0 go to standard output and, once the output directory is
 !> known, also into <output.dir>/<name>.log (lines written before that are replayed there).
 !> Warnings and errors go to standard error (dkt_errors) and, through log_record, into the log
-!> file too, so that the log alone tells why a run stopped.
+!> file too, so that the log alone tells why a run stopped. A console that cannot be written
+!> (closed standard output or error) never stops a run: the log file keeps every line.
 module dkt_log
   use iso_fortran_env, only: output_unit
   use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Initialized, MPI_Finalized
@@ -23,13 +24,17 @@ contains
     is_root = rank == 0
   end function is_root
 
-  !> Print one line on rank 0 (and keep it for the log file).
+  !> Print one line on rank 0 (and keep it for the log file). A standard output that cannot
+  !! be written (a pipe whose reader has gone: `dktlbm ... | head`) ends the console copy; the
+  !! run and its log file go on.
   subroutine log_line(msg)
     character(len=*), intent(in) :: msg
+    integer :: ios
     if (.not. is_root()) return
     if (to_stdout) then
-      write (output_unit, '(a)') msg
-      flush (output_unit)
+      write (output_unit, '(a)', iostat=ios) msg
+      if (ios == 0) flush (output_unit, iostat=ios)
+      if (ios /= 0) to_stdout = .false.
     end if
     call to_file(msg)
   end subroutine log_line

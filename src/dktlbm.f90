@@ -4,7 +4,7 @@ program dktlbm
   use iso_fortran_env, only: output_unit
   use mpi_f08, only: MPI_Init, MPI_Finalize, MPI_COMM_WORLD, MPI_Comm_rank, MPI_Bcast, &
                      MPI_INTEGER, MPI_CHARACTER, MPI_Barrier
-  use dkt_signals, only: signals_install
+  use dkt_signals, only: signals_install, signals_release
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, config_to_namelist, print_help, &
@@ -21,10 +21,11 @@ program dktlbm
   type(lattice_params_t) :: lp
   type(simulation_t) :: sim
   character(len=:), allocatable :: err, text, warnings
-  integer :: rank
+  integer :: rank, status
 
-  ! SIGTERM and SIGUSR1 are noted from the very start, so that a signal sent while the run is
-  ! still setting up stops it cleanly at its first steps instead of killing it
+  ! the stopping signals (SIGTERM, SIGINT, SIGHUP, SIGUSR1, ...) are noted from the very start,
+  ! so that a signal sent while the run is still setting up stops it cleanly at its first steps
+  ! instead of killing it, and SIGPIPE is ignored (a closed standard output is not fatal)
   call signals_install()
   call MPI_Init()
   call MPI_Comm_rank(MPI_COMM_WORLD, rank)
@@ -32,6 +33,8 @@ program dktlbm
 
   call parse_command_line(cli, err)
   if (len(err) > 0) call fatal_all(err)
+  ! a check writes nothing to keep: Ctrl-C ends it at once, as it ends any command
+  if (cli%check .or. cli%print_defaults) call signals_release()
   if (cli%help .or. cli%version .or. (cli%print_defaults .and. len(cli%nml_file) == 0)) then
     if (rank == 0) call print_info(cli)
     call MPI_Finalize()
@@ -46,7 +49,7 @@ program dktlbm
   if (len(err) > 0) call fatal_all(err)
   if (cli%print_defaults) then
     ! the file's values with the --set options applied, as a namelist that reads back
-    if (rank == 0) write (output_unit, '(a)', advance='no') cfg%given
+    if (rank == 0) write (output_unit, '(a)', advance='no', iostat=status) cfg%given
     call MPI_Finalize()
     stop
   end if
@@ -124,13 +127,15 @@ contains
     type(cli_t), intent(in) :: cli
     type(config_t) :: defaults
     character(len=:), allocatable :: nml
+    integer :: status !! a closed standard output (`| head`) is not an error here
     if (cli%help) then
       call print_help(output_unit)
     else if (cli%version) then
-      write (output_unit, '(a)') 'dktlbm '//dkt_version_string//' ('//dkt_git_revision//')'
+      write (output_unit, '(a)', iostat=status) 'dktlbm '//dkt_version_string//' ('// &
+        dkt_git_revision//')'
     else
       call config_to_namelist(defaults, nml)
-      write (output_unit, '(a)', advance='no') nml
+      write (output_unit, '(a)', advance='no', iostat=status) nml
     end if
   end subroutine print_info
 
