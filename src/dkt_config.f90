@@ -952,6 +952,7 @@ contains
     type(lattice_params_t) :: lp
     integer :: j
     integer :: few_cells, near_wall !! particles with too few cells, too near a wall (warned)
+    integer, parameter :: WARN_EACH = 10 !! warnings naming a particle, then one line counting
 
     warnings = ''
     do j = 1, size(reg%keys)
@@ -997,13 +998,15 @@ contains
       call check_particle(j)
       if (len(err) > 0) return
     end do
-    ! a scene of many disks gets one line per kind of warning, not one per disk
-    if (few_cells > 1) warnings = warnings//NL//from('lbm.dx particles.diameter')//': '// &
-                                  itoa(few_cells - 1)//' more particles have fewer than '// &
-                                  itoa(nint(GOOD_CELLS_PER_D))//' cells per diameter'
-    if (near_wall > 1) warnings = warnings//NL//from('particles.x particles.y lbm.dx')//': '// &
-                                  itoa(near_wall - 1)//' more free particles start with '// &
-                                  'their surface less than dx from a wall'
+    ! a scene of many disks: the first WARN_EACH of each kind of warning, then a count
+    if (few_cells > WARN_EACH) warnings = warnings//NL//from('lbm.dx particles.diameter')// &
+                                          ': '//itoa(few_cells - WARN_EACH)//' more particles '// &
+                                          'have fewer than '// &
+                                          itoa(nint(GOOD_CELLS_PER_D))//' cells per diameter'
+    if (near_wall > WARN_EACH) warnings = warnings//NL//from('particles.x particles.y lbm.dx')// &
+                                          ': '//itoa(near_wall - WARN_EACH)//' more free '// &
+                                          'particles start with '// &
+                                          'their surface less than dx from a wall'
     ! a pair too close is the user's pair.dh, before it shows as an overlap of &particles
     if (c%pair%gamma > 0.0_wp) call check_pair()
     if (len(err) > 0) return
@@ -1398,7 +1401,7 @@ contains
         cells = p%diameter(k)/c%lbm%dx
         ! the message is built only when it is used: a scene may hold 10^5 particles
         if (cells < MIN_CELLS_PER_D - WHOLE_TOL .or. &
-            (cells < GOOD_CELLS_PER_D - WHOLE_TOL .and. few_cells == 0)) &
+            (cells < GOOD_CELLS_PER_D - WHOLE_TOL .and. few_cells < WARN_EACH)) &
           both = from('lbm.dx particles.diameter lbm.cells_per_diameter')//': '// &
                  item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
                  ' give '//fmt_num(cells)//' cells per diameter'
@@ -1408,9 +1411,9 @@ contains
                 itoa(nint(MIN_CELLS_PER_D))//' = '// &
                 fmt_num(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
         else if (cells < GOOD_CELLS_PER_D - WHOLE_TOL) then
-          ! one warning names the first such particle; the others are counted (below)
+          ! the first WARN_EACH such particles are named; the others are counted (below)
           few_cells = few_cells + 1
-          if (few_cells == 1) then
+          if (few_cells <= WARN_EACH) then
             if (len(warnings) > 0) warnings = warnings//NL
             warnings = warnings//both//', fewer than '//itoa(nint(GOOD_CELLS_PER_D))// &
                        ': the force on particle '//itoa(k)//' and its motion will be '// &
@@ -1446,7 +1449,7 @@ contains
         do j = 1, size(gap)
           if (.not. wall(j) .or. gap(j) >= c%lbm%dx*(1.0_wp - CONTACT_TOL)) cycle
           near_wall = near_wall + 1
-          if (near_wall > 1) return
+          if (near_wall > WARN_EACH) return
           if (len(warnings) > 0) warnings = warnings//NL
           warnings = warnings//from('particles.x particles.y lbm.dx')//': particle '// &
                      itoa(k)//' starts with its surface '//fmt_num(round6(gap(j)/c%lbm%dx))// &
