@@ -123,8 +123,7 @@ module dkt_io
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
   !> the longest namelist text (characters) stored as the attribute /run namelist; a longer one
-  !! (a scene of some 500 particles and more) is the dataset /run/namelist, since HDF5 keeps an
-  !! object's attributes in its header, which holds at most 64 KiB
+  !! (a scene of some 500 particles and more, up to megabytes) is the dataset /run/namelist
   integer, parameter :: NAMELIST_ATTR_MAX = 32768
 
   interface
