@@ -6,7 +6,7 @@ module dkt_collisions
   use dkt_kinds, only: wp
   implicit none
   private
-  public :: collision_forces, repel
+  public :: collision_forces, collision_force_on, repel
 
 contains
 
@@ -20,8 +20,8 @@ contains
     real(wp), intent(in) :: eps, eps_overlap    !! eps_p and eps'_p of E10
     real(wp), intent(in) :: range               !! threshold xi of E10
     real(wp), intent(out) :: cx(:), cy(:)       !! force on each particle
-    integer :: a, b, m
-    real(wp) :: fx, fy, mx, my
+    integer :: a, b
+    real(wp) :: fx, fy
     cx = 0.0_wp
     cy = 0.0_wp
     do a = 1, size(x)
@@ -34,20 +34,62 @@ contains
       end do
       ! E11: the mirror particle X' across each wall, 2 R in place of R_i + R_j, stiffness
       ! halved
-      do m = 1, merge(4, 2, walls_y)
-        select case (m)
-        case (1); mx = -x(a); my = y(a)
-        case (2); mx = 2.0_wp*width - x(a); my = y(a)
-        case (3); mx = x(a); my = -y(a)
-        case default; mx = x(a); my = 2.0_wp*height - y(a)
-        end select
-        call repel(x(a), y(a), mx, my, 2.0_wp*r(a), 0.5_wp*eps, 0.5_wp*eps_overlap, range, &
-                   fx, fy)
-        cx(a) = cx(a) + fx
-        cy(a) = cy(a) + fy
-      end do
+      call add_wall_forces(x(a), y(a), r(a), width, height, walls_y, eps, eps_overlap, range, &
+                           cx(a), cy(a))
     end do
   end subroutine collision_forces
+
+  !> The contact force (fx, fy) on particle k alone: cx(k), cy(k) of collision_forces with the
+  !! same arguments, summed in the same order (the pairs (a, k) for a < k, then (k, b) for b > k,
+  !! then the walls), so with the same bits, in time linear in the number of particles.
+  pure subroutine collision_force_on(k, x, y, r, width, height, walls_y, eps, eps_overlap, &
+                                     range, fx, fy)
+    integer, intent(in) :: k                    !! the particle
+    real(wp), intent(in) :: x(:), y(:), r(:)    !! centres and radii
+    real(wp), intent(in) :: width, height       !! channel size
+    logical, intent(in) :: walls_y              !! the ends are walls
+    real(wp), intent(in) :: eps, eps_overlap    !! eps_p and eps'_p of E10
+    real(wp), intent(in) :: range               !! threshold xi of E10
+    real(wp), intent(out) :: fx, fy             !! force on particle k
+    integer :: a
+    real(wp) :: gx, gy
+    fx = 0.0_wp
+    fy = 0.0_wp
+    do a = 1, k - 1
+      call repel(x(a), y(a), x(k), y(k), r(a) + r(k), eps, eps_overlap, range, gx, gy)
+      fx = fx - gx
+      fy = fy - gy
+    end do
+    do a = k + 1, size(x)
+      call repel(x(k), y(k), x(a), y(a), r(k) + r(a), eps, eps_overlap, range, gx, gy)
+      fx = fx + gx
+      fy = fy + gy
+    end do
+    call add_wall_forces(x(k), y(k), r(k), width, height, walls_y, eps, eps_overlap, range, &
+                         fx, fy)
+  end subroutine collision_force_on
+
+  !> Add to (fx, fy) the force of each wall on the disk at (x, y) of radius r, one wall after
+  !! the other (E11: the mirror disk, half the stiffness); the ends only when they are walls.
+  pure subroutine add_wall_forces(x, y, r, width, height, walls_y, eps, eps_overlap, range, &
+                                  fx, fy)
+    real(wp), intent(in) :: x, y, r, width, height, eps, eps_overlap, range
+    logical, intent(in) :: walls_y
+    real(wp), intent(inout) :: fx, fy
+    real(wp) :: gx, gy, mx, my
+    integer :: m
+    do m = 1, merge(4, 2, walls_y)
+      select case (m)
+      case (1); mx = -x; my = y
+      case (2); mx = 2.0_wp*width - x; my = y
+      case (3); mx = x; my = -y
+      case default; mx = x; my = 2.0_wp*height - y
+      end select
+      call repel(x, y, mx, my, 2.0_wp*r, 0.5_wp*eps, 0.5_wp*eps_overlap, range, gx, gy)
+      fx = fx + gx
+      fy = fy + gy
+    end do
+  end subroutine add_wall_forces
 
   !> E10 on the first of two disks whose radii add to rsum: zero beyond rsum + range, growing
   !! with the square of the gap inside the range, linear in the overlap.

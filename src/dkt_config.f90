@@ -883,6 +883,67 @@ contains
   !> Every check of a configuration: each key's range or choices, then the rules that join
   !! keys. Messages name where the key was set (file:line or --set), else the file.
   !! `warnings`: newline-separated, '' if none; incomplete when `err` is set.
+  !> The first pair k < m (smallest k, then smallest m, as a double loop finds it) of disks at
+  !! (x, y) with diameters d whose centres are closer than the contact distance (d_k + d_m)/2
+  !! (less CONTACT_TOL); k = m = 0 if none. A cell list makes it linear in the number of disks:
+  !! the disks are sorted into square cells at least as wide as the largest diameter, so a disk
+  !! can only touch disks of its own and the eight neighbouring cells. The cells are widened
+  !! when the disks are spread far apart, so that there are at most about 4 n of them.
+  subroutine first_overlap(x, y, d, k, m)
+    real(wp), intent(in) :: x(:), y(:), d(:)
+    integer, intent(out) :: k, m
+    integer, allocatable :: cell(:), first(:), member(:), fill(:)
+    real(wp) :: h, x0, y0, spread
+    integer :: n, ncx, ncy, a, b, j, cx, cy, ix, iy, best
+    n = size(x)
+    k = 0
+    m = 0
+    if (n < 2) return
+    x0 = minval(x)
+    y0 = minval(y)
+    spread = max(maxval(x) - x0, maxval(y) - y0)
+    h = max(maxval(d), spread/(2.0_wp*sqrt(real(n, wp))), tiny(1.0_wp))
+    ncx = int((maxval(x) - x0)/h) + 1
+    ncy = int((maxval(y) - y0)/h) + 1
+    allocate (cell(n), first(0:ncx*ncy), member(n), fill(0:ncx*ncy - 1))
+    do a = 1, n
+      cell(a) = min(int((x(a) - x0)/h), ncx - 1) + ncx*min(int((y(a) - y0)/h), ncy - 1)
+    end do
+    ! counting sort: the disks of cell j are member(first(j) + 1 : first(j + 1))
+    first = 0
+    do a = 1, n
+      first(cell(a) + 1) = first(cell(a) + 1) + 1
+    end do
+    do j = 1, ncx*ncy
+      first(j) = first(j) + first(j - 1)
+    end do
+    fill = first(0:ncx*ncy - 1)
+    do a = 1, n
+      fill(cell(a)) = fill(cell(a)) + 1
+      member(fill(cell(a))) = a
+    end do
+    do a = 1, n
+      cx = mod(cell(a), ncx)
+      cy = cell(a)/ncx
+      best = huge(best)
+      do iy = max(cy - 1, 0), min(cy + 1, ncy - 1)
+        do ix = max(cx - 1, 0), min(cx + 1, ncx - 1)
+          do j = first(ix + ncx*iy) + 1, first(ix + ncx*iy + 1)
+            b = member(j)
+            if (b <= a .or. b >= best) cycle
+            if (hypot(x(b) - x(a), y(b) - y(a)) < 0.5_wp*(d(a) + d(b))*(1.0_wp - CONTACT_TOL)) &
+              best = b
+          end do
+        end do
+      end do
+      if (best < huge(best)) then
+        k = a
+        m = best
+        return
+      end if
+    end do
+  end subroutine first_overlap
+
   subroutine validate(c, reg, err, warnings)
     type(config_t), intent(in) :: c
     type(registry_t), intent(in) :: reg
@@ -890,6 +951,8 @@ contains
     character(len=:), allocatable, intent(out) :: warnings
     type(lattice_params_t) :: lp
     integer :: j
+    integer :: few_cells, near_wall !! particles with too few cells, too near a wall (warned)
+    integer, parameter :: WARN_EACH = 10 !! warnings naming a particle, then one line counting
 
     warnings = ''
     do j = 1, size(reg%keys)
@@ -929,10 +992,21 @@ contains
       if (len(err) > 0) return
     end associate
 
+    few_cells = 0
+    near_wall = 0
     do j = 1, c%particles%count
       call check_particle(j)
       if (len(err) > 0) return
     end do
+    ! a scene of many disks: the first WARN_EACH of each kind of warning, then a count
+    if (few_cells > WARN_EACH) warnings = warnings//NL//from('lbm.dx particles.diameter')// &
+                                          ': '//itoa(few_cells - WARN_EACH)//' more particles '// &
+                                          'have fewer than '// &
+                                          itoa(nint(GOOD_CELLS_PER_D))//' cells per diameter'
+    if (near_wall > WARN_EACH) warnings = warnings//NL//from('particles.x particles.y lbm.dx')// &
+                                          ': '//itoa(near_wall - WARN_EACH)//' more free '// &
+                                          'particles start with '// &
+                                          'their surface less than dx from a wall'
     ! a pair too close is the user's pair.dh, before it shows as an overlap of &particles
     if (c%pair%gamma > 0.0_wp) call check_pair()
     if (len(err) > 0) return
@@ -1325,22 +1399,29 @@ contains
         end if
 
         cells = p%diameter(k)/c%lbm%dx
-        both = from('lbm.dx particles.diameter lbm.cells_per_diameter')//': '// &
-               item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
-               ' give '//fmt_num(cells)//' cells per diameter'
+        ! the message is built only when it is used: a scene may hold 10^5 particles
+        if (cells < MIN_CELLS_PER_D - WHOLE_TOL .or. &
+            (cells < GOOD_CELLS_PER_D - WHOLE_TOL .and. few_cells < WARN_EACH)) &
+          both = from('lbm.dx particles.diameter lbm.cells_per_diameter')//': '// &
+                 item('diameter', k, p%diameter(k))//' and &lbm dx = '//val('lbm', 'dx')// &
+                 ' give '//fmt_num(cells)//' cells per diameter'
         if (cells < MIN_CELLS_PER_D - WHOLE_TOL) then
           err = both//'; allowed: diameter('//itoa(k)//')/dx >= '// &
                 itoa(nint(MIN_CELLS_PER_D))//', i.e. dx <= diameter('//itoa(k)//')/'// &
                 itoa(nint(MIN_CELLS_PER_D))//' = '// &
                 fmt_num(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
         else if (cells < GOOD_CELLS_PER_D - WHOLE_TOL) then
-          if (len(warnings) > 0) warnings = warnings//NL
-          warnings = warnings//both//', fewer than '//itoa(nint(GOOD_CELLS_PER_D))// &
-                     ': the force on particle '//itoa(k)//' and its motion will be '// &
-                     'inaccurate; dx <= diameter('//itoa(k)//')/'// &
-                     itoa(nint(GOOD_CELLS_PER_D))//' = '// &
-                     fmt_num(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
-                     itoa(nint(GOOD_CELLS_PER_D))
+          ! the first WARN_EACH such particles are named; the others are counted (below)
+          few_cells = few_cells + 1
+          if (few_cells <= WARN_EACH) then
+            if (len(warnings) > 0) warnings = warnings//NL
+            warnings = warnings//both//', fewer than '//itoa(nint(GOOD_CELLS_PER_D))// &
+                       ': the force on particle '//itoa(k)//' and its motion will be '// &
+                       'inaccurate; dx <= diameter('//itoa(k)//')/'// &
+                       itoa(nint(GOOD_CELLS_PER_D))//' = '// &
+                       fmt_num(p%diameter(k)/GOOD_CELLS_PER_D)//' cm gives '// &
+                       itoa(nint(GOOD_CELLS_PER_D))
+          end if
         end if
         call check_wall_gap(k)
       end associate
@@ -1367,6 +1448,8 @@ contains
                 d%upper == 'wall' .and. .not. c%window%enabled]
         do j = 1, size(gap)
           if (.not. wall(j) .or. gap(j) >= c%lbm%dx*(1.0_wp - CONTACT_TOL)) cycle
+          near_wall = near_wall + 1
+          if (near_wall > WARN_EACH) return
           if (len(warnings) > 0) warnings = warnings//NL
           warnings = warnings//from('particles.x particles.y lbm.dx')//': particle '// &
                      itoa(k)//' starts with its surface '//fmt_num(round6(gap(j)/c%lbm%dx))// &
@@ -1425,24 +1508,19 @@ contains
       real(wp) :: gx, gy, dist, contact
       integer :: k, m
       associate (p => c%particles)
-        do k = 1, p%count
-          do m = k + 1, p%count
-            gx = p%x(m) - p%x(k)
-            gy = p%y(m) - p%y(k)
-            dist = hypot(gx, gy)
-            contact = 0.5_wp*(p%diameter(k) + p%diameter(m))
-            if (dist < contact*(1.0_wp - CONTACT_TOL)) then
-              err = from('particles.y particles.x particles.diameter')// &
-                    ': &particles: particles '//itoa(k)//' and '//itoa(m)//' overlap at t = 0: '// &
-                    pair('x', k, m)//', '//pair('y', k, m)//', '// &
-                    pair('diameter', k, m)//': the distance of the centres '//fmt_num(dist)// &
-                    ' cm is less than the contact distance (diameter('//itoa(k)// &
-                    ') + diameter('//itoa(m)//'))/2 = '//fmt_num(contact)//' cm; allowed: '// &
-                    'a distance of at least '//fmt_num(contact)//' cm; move them apart'
-              return
-            end if
-          end do
-        end do
+        call first_overlap(p%x(1:p%count), p%y(1:p%count), p%diameter(1:p%count), k, m)
+        if (k == 0) return
+        gx = p%x(m) - p%x(k)
+        gy = p%y(m) - p%y(k)
+        dist = hypot(gx, gy)
+        contact = 0.5_wp*(p%diameter(k) + p%diameter(m))
+        err = from('particles.y particles.x particles.diameter')// &
+              ': &particles: particles '//itoa(k)//' and '//itoa(m)//' overlap at t = 0: '// &
+              pair('x', k, m)//', '//pair('y', k, m)//', '// &
+              pair('diameter', k, m)//': the distance of the centres '//fmt_num(dist)// &
+              ' cm is less than the contact distance (diameter('//itoa(k)// &
+              ') + diameter('//itoa(m)//'))/2 = '//fmt_num(contact)//' cm; allowed: '// &
+              'a distance of at least '//fmt_num(contact)//' cm; move them apart'
       end associate
     end subroutine check_contacts
 

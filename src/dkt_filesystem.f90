@@ -7,6 +7,7 @@ module dkt_filesystem
   implicit none
   private
   public :: make_directories, path_exists, rename_file, remove_file, write_marker
+  public :: directory_problem
 
   interface
     integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
@@ -18,6 +19,11 @@ module dkt_filesystem
       import :: c_char, c_int
       character(kind=c_char), intent(in) :: old(*), new(*)
     end function c_rename
+    integer(c_int) function c_access(path, mode) bind(C, name='access')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: mode
+    end function c_access
   end interface
 
 contains
@@ -70,6 +76,36 @@ contains
     end do
     if (.not. is_directory(path)) err = ''''//trim(path)//''' exists but is not a directory'
   end subroutine make_directories
+
+  !> Why a run could not write its files into directory `path` ('' if it could): `path`, or
+  !! the nearest of its parents that exists (the run creates the others), must be a directory
+  !! that this process may write into (POSIX access W_OK and X_OK).
+  function directory_problem(path) result(err)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: err
+    character(len=:), allocatable :: at
+    integer(c_int), parameter :: W_OK = 2, X_OK = 1
+    integer :: slash
+    err = ''
+    at = trim(path)
+    do while (len(at) > 0 .and. .not. path_exists(at))
+      slash = index(at, '/', back=.true.)
+      if (slash == 0) then
+        at = '.'
+      else if (slash == 1) then
+        at = '/'
+      else
+        at = at(:slash - 1)
+      end if
+    end do
+    if (len(at) == 0) at = '.'
+    if (.not. is_directory(at)) then
+      err = ''''//at//''' exists and is not a directory'
+    else if (c_access(at//c_null_char, ior(W_OK, X_OK)) /= 0) then
+      err = 'the directory '''//at//''' is not writable'
+    end if
+    if (len(err) > 0 .and. at /= trim(path)) err = 'cannot create it: '//err
+  end function directory_problem
 
   logical function is_directory(path)
     character(len=*), intent(in) :: path

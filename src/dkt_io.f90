@@ -122,6 +122,9 @@ module dkt_io
   integer :: n_open_files = 0
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
+  !> the longest namelist text (characters) stored as the attribute /run namelist; a longer one
+  !! (a scene of some 500 particles and more, up to megabytes) is the dataset /run/namelist
+  integer, parameter :: NAMELIST_ATTR_MAX = 32768
 
   interface
     !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1. hid_t is the C
@@ -502,7 +505,9 @@ contains
   end subroutine io_reopen
 
   !> Write group /run: the configuration, provenance and one real attribute per lattice
-  !! parameter with its unit. Call once, with the same arguments on every rank.
+  !! parameter with its unit. The configuration is the string attribute `namelist` when it
+  !! has at most NAMELIST_ATTR_MAX characters, else the dataset /run/namelist (docs/output.md).
+  !! Call once, with the same arguments on every rank.
   subroutine io_write_run(io, namelist_text, version, git_revision, nranks, compiler, flags, &
                           names, values, units)
     type(io_t), intent(inout) :: io
@@ -523,7 +528,11 @@ contains
       call fatal_local('io_write_run: names, values and units differ in size')
     call h5gcreate_f(io%file_id, 'run', grp, hdferr)
     call check(hdferr, 'h5gcreate_f(/run)', io%path)
-    call put_attr(io, grp, 'namelist', s=namelist_text)
+    if (len(namelist_text) <= NAMELIST_ATTR_MAX) then
+      call put_attr(io, grp, 'namelist', s=namelist_text)
+    else
+      call put_text_dataset(io, grp, 'namelist', namelist_text)
+    end if
     call put_attr(io, grp, 'version', s=version)
     call put_attr(io, grp, 'git_revision', s=git_revision)
     call put_attr(io, grp, 'ranks', i=nranks)
@@ -1164,6 +1173,30 @@ contains
     if (.not. (present(r) .or. present(i))) call h5tclose_f(atype, e(3))
     call check(minval(e), 'h5aclose_f/h5sclose_f/h5tclose_f('//name//')', io%path)
   end subroutine put_attr
+
+  !> The string dataset `name` in `loc`: one fixed-length UTF-8 string holding `text`, written
+  !! by rank 0 (the text is the same on every rank). Collective.
+  subroutine put_text_dataset(io, loc, name, text)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, text
+    character(len=:), allocatable, target :: buf
+    type(c_ptr) :: ptr
+    integer(hid_t) :: stype
+    integer :: e(3)
+    buf = text
+    call h5tcopy_f(H5T_NATIVE_CHARACTER, stype, e(1))
+    call h5tset_size_f(stype, int(max(1, len(buf)), size_t), e(2))
+    call h5tset_cset_f(stype, H5T_CSET_UTF8_F, e(3))
+    call check(minval(e), 'h5tcopy_f/h5tset_size_f/h5tset_cset_f('//name//')', io%path)
+    ! the address is taken first: gfortran 12 passes len(buf) as the length of the next
+    ! character argument when c_loc(buf) of a deferred-length string is an actual argument
+    ptr = c_loc(buf)
+    call put_dataset(io, loc, name, stype, one, [0_hsize_t], &
+                     merge(one, [0_hsize_t], io%rank == 0), ptr, '', chunked=.false.)
+    call h5tclose_f(stype, e(1))
+    call check(e(1), 'h5tclose_f('//name//')', io%path)
+  end subroutine put_text_dataset
 
   !> Collective write of this rank's block (start, count) of dataset `dset` from `buf`, which
   !! holds product(count) values, first index fastest. An empty block takes part in the

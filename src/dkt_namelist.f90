@@ -25,7 +25,8 @@ module dkt_namelist
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
                           KEY_CHOICE, read_real, find_key, has_group, unknown_group_hint, &
-                          unknown_key_hint, allowed_text, text_length, lower_case, quoted, itoa
+                          unknown_key_hint, allowed_text, text_length, lower_case, quoted, itoa, &
+                          append_text
   implicit none
   private
   public :: parse_namelist, apply_override
@@ -729,8 +730,9 @@ contains
     type(token_t), allocatable, intent(out) :: toks(:)
     integer, intent(out) :: nt
     character(len=:), allocatable :: s, rep, why
+    character(len=:), allocatable :: buf !! the characters of a string token
     character :: c, quote
-    integer :: p, q, line, n, first_line, last_end, nl, start
+    integer :: p, q, k, line, n, first_line, last_end, nl, start
     integer :: spanned !! first line of the last string that ran over lines; 0 if none
     logical :: has_rep
     allocate (toks(64))
@@ -788,48 +790,55 @@ contains
         ! A string may go on over lines (the line ends are not part of it, F2008 10.11.3.3).
         quote = c
         first_line = line
-        s = ''
+        ! the string is built in a buffer as long as the text (it cannot be longer), allocated
+        ! once, so that the time is linear in the length of the text
+        if (.not. allocated(buf)) allocate (character(len=n) :: buf)
+        k = 0
         do
           p = p + 1
           if (p > n) then
-            q = index(s//achar(10), achar(10))
+            q = index(buf(:k)//achar(10), achar(10))
             why = 'it ends at the next '//quote//' (a doubled '//quote//quote// &
                   ' stands for one), maybe on a later line'
             ! A quote left out earlier makes the next string run on and pair the wrong quotes.
             if (spanned > 0) why = why//'; the string that starts on line '//itoa(spanned)// &
                                    ' runs over several lines: is its closing quote missing?'
             line = first_line
-            call push_bad(BAD_STRING, quote//s(:q - 1), why)
+            call push_bad(BAD_STRING, quote//buf(:q - 1), why)
             return
           end if
           if (text(p:p) == achar(10)) then
             line = line + 1
-            if (len(s) > 0) then ! drop the CR of a CR LF line end
-              if (s(len(s):) == achar(13)) s = s(:len(s) - 1)
+            if (k > 0) then ! drop the CR of a CR LF line end
+              if (buf(k:k) == achar(13)) k = k - 1
             end if
-            s = s//achar(10) ! kept only to cut the message above; removed below
+            k = k + 1
+            buf(k:k) = achar(10) ! kept only to cut the message above; removed below
             cycle
           end if
           if (text(p:p) == quote) then
             if (p < n) then
               if (text(p + 1:p + 1) == quote) then ! a doubled quote stands for one
-                s = s//quote
+                k = k + 1
+                buf(k:k) = quote
                 p = p + 1
                 cycle
               end if
             end if
             exit
           end if
-          s = s//text(p:p)
+          k = k + 1
+          buf(k:k) = text(p:p)
         end do
         line_ends: block
-          character(len=:), allocatable :: joined
-          integer :: j
-          joined = ''
-          do j = 1, len(s)
-            if (s(j:j) /= achar(10)) joined = joined//s(j:j)
+          integer :: j, m
+          m = 0
+          do j = 1, k
+            if (buf(j:j) == achar(10)) cycle
+            m = m + 1
+            buf(m:m) = buf(j:j)
           end do
-          s = joined
+          s = buf(:m)
         end block line_ends
         call push(TOK_STRING, s, first_line)
         if (line > first_line) spanned = first_line
@@ -941,12 +950,14 @@ contains
   function join_values(vals) result(s)
     type(token_t), intent(in) :: vals(:)
     character(len=:), allocatable :: s
-    integer :: j
-    s = ''
+    integer :: j, n
+    n = 0
+    call append_text(s, n, '')
     do j = 1, size(vals)
-      if (j > 1) s = s//', '
-      s = s//display(vals(j))
+      if (j > 1) call append_text(s, n, ', ')
+      call append_text(s, n, display(vals(j)))
     end do
+    s = s(:n)
   end function join_values
 
   function itoa64(i) result(s)

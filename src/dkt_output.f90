@@ -16,15 +16,20 @@ module dkt_output
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute, io_reopen
   use dkt_log, only: log_line, log_open
-  use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker
+  use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
+                            directory_problem
   use dkt_registry, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
   implicit none
   private
-  public :: output_open, output_check_existing, output_fields, output_particles, &
+  public :: output_open, output_check_existing, output_check_dir, output_fields, output_particles, &
             output_pair_report, output_close, output_fail, output_final, output_scheduled, &
             output_mark_finished
+
+  !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
+  !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
+  integer, parameter :: MAX_MPIIO_PATH = 240
 
   !> output fields and their units; in a scene with particles also the integer field
   !! `particle` (written by io_write_fields), in this order
@@ -190,6 +195,36 @@ contains
       sim%csv_open = .true.
     end subroutine reopen_csv
   end subroutine output_open
+
+  !> Stop every rank, before anything is written, when output.dir cannot take the run's
+  !! files: it (or the parent it would be created in) is not a writable directory, or the full
+  !! path of a checkpoint file in it is longer than MPI-IO takes (MAX_MPIIO_PATH). The run and
+  !! --check both make this check, so that --check refuses what the run would refuse.
+  subroutine output_check_dir(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=:), allocatable :: dir, err, longest
+    integer :: n
+    logical :: ok
+    dir = config_output_dir(sim%cfg)
+    err = ''
+    if (sim%dom%rank == 0) then
+      err = directory_problem(dir)
+      ! the longest path the run opens through MPI-IO (as written: Open MPI does not make it
+      ! absolute): a checkpoint while it is written
+      longest = dir//'/'//sim%cfg%name//'_chk_000000000.h5.tmp'
+      n = len(longest) - len(dir)
+      if (len(err) == 0 .and. len(longest) > MAX_MPIIO_PATH) &
+        err = 'the path of its checkpoint files, '''//longest//''', is '// &
+              itoa(len(longest))//' characters long; allowed: at most '//itoa(MAX_MPIIO_PATH)// &
+              ' (longer paths crash the MPI-IO of Open MPI), i.e. an output.dir of at most '// &
+              itoa(MAX_MPIIO_PATH - n)//' characters with this scene name'
+    end if
+    ok = len(err) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! only rank 0 knows the reason; it is the rank that prints
+    if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
+                                 err//'; choose another output.dir')
+  end subroutine output_check_dir
 
   !> Stop every rank when output.dir holds a file of an earlier run of this scene and
   !! output.overwrite is off; the run makes this check before it writes, and --check makes the

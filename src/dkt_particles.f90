@@ -26,7 +26,7 @@ module dkt_particles
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_rows_for, domain_edge_rows
   use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
-  use dkt_collisions, only: collision_forces
+  use dkt_collisions, only: collision_force_on
   implicit none
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
@@ -135,25 +135,50 @@ contains
   !> The fewest particle sub-steps per fluid step for which the explicit update (E8) of the
   !! stiffest contact (E10–E11) stays stable: omega h <= 1, with omega^2 = k / m for the
   !! spring constant k of the overlap or range law at contact and the reduced mass m.
+  !! Particles of one kind (radius, mass, free or not) give the same springs, so the pairs are
+  !! taken between kinds: linear in the particles for a scene of a few kinds, and the same
+  !! value as over all pairs. huge(n) stands for a count too large for an integer.
   pure integer function particles_stable_substeps(ps) result(n)
     type(particles_t), intent(in) :: ps
     real(wp) :: omega, k, m
-    integer :: a, b
-    omega = 0.0_wp
+    integer :: a, b, i, j, nk
+    integer, allocatable :: first(:), members(:) !! a particle of each kind, how many there are
+    allocate (first(ps%n), members(ps%n))
+    nk = 0
     do a = 1, ps%n
+      do j = 1, nk
+        b = first(j)
+        if (ps%p(b)%r == ps%p(a)%r .and. ps%p(b)%mass == ps%p(a)%mass .and. &
+            ((ps%p(b)%motion == MOTION_FREE) .eqv. (ps%p(a)%motion == MOTION_FREE))) exit
+      end do
+      if (j > nk) then
+        nk = j
+        first(j) = a
+        members(j) = 0
+      end if
+      members(j) = members(j) + 1
+    end do
+    omega = 0.0_wp
+    do i = 1, nk
+      a = first(i)
       if (ps%p(a)%motion /= MOTION_FREE) cycle
       ! the wall: the mirror particle at d = 2 r, stiffness halved (E11)
       k = spring(2.0_wp*ps%p(a)%r, 0.5_wp*ps%stiffness, 0.5_wp*ps%stiffness_overlap)
       omega = max(omega, sqrt(k/ps%p(a)%mass))
-      do b = 1, ps%n
-        if (b == a) cycle
+      do j = 1, nk
+        if (j == i .and. members(i) < 2) cycle ! no other particle of this kind
+        b = first(j)
         k = spring(ps%p(a)%r + ps%p(b)%r, ps%stiffness, ps%stiffness_overlap)
         m = ps%p(a)%mass
         if (ps%p(b)%motion == MOTION_FREE) m = m*ps%p(b)%mass/(m + ps%p(b)%mass)
         omega = max(omega, sqrt(k/m))
       end do
     end do
-    n = max(1, ceiling(omega))
+    if (omega >= real(huge(n), wp)) then
+      n = huge(n)
+    else
+      n = max(1, ceiling(omega))
+    end if
   contains
     !> dF/dgap of E10 at contact: d/eps' in the overlap, up to 2 d xi/eps in the range
     pure real(wp) function spring(d, eps, eps_overlap)
@@ -535,7 +560,7 @@ contains
     logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     type(particle_t), allocatable :: old(:)
-    real(wp) :: h, ax, ay, gy, cx(ps%n), cy(ps%n), xs(ps%n), ys(ps%n), state(10)
+    real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), state(10)
     integer :: k, s, own
     allocate (old, source=ps%p)
     h = 1.0_wp/ps%substeps
@@ -548,10 +573,9 @@ contains
             ys = old%y
             xs(k) = p%x
             ys(k) = p%y
-            call collision_forces(xs, ys, old%r, real(dom%nx, wp), real(dom%ny, wp), walls_y, &
-                                  ps%stiffness, ps%stiffness_overlap, ps%range, cx, cy)
-            p%cx = cx(k)
-            p%cy = cy(k)
+            call collision_force_on(k, xs, ys, old%r, real(dom%nx, wp), real(dom%ny, wp), &
+                                    walls_y, ps%stiffness, ps%stiffness_overlap, ps%range, &
+                                    p%cx, p%cy)
             select case (p%motion)
             case (MOTION_FREE)
               ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y

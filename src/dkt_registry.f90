@@ -19,7 +19,7 @@ module dkt_registry
   public :: find_key, has_group, origin_of, blame, unknown_group_hint, unknown_key_hint, check_key
   public :: value_text, allowed_text, type_name, text_length, fmt_real, fmt_num, read_real
   public :: lower_case, quoted, itoa ! the spelling rules of names and values, also for parsing
-  public :: counted
+  public :: counted, append_text
   public :: printable
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
@@ -344,16 +344,18 @@ contains
   function value_text(k) result(s)
     type(key_t), intent(in) :: k
     character(len=:), allocatable :: s
-    integer :: j
+    integer :: j, n
     select case (k%kind)
     case (KEY_REAL)
       if (k%n == 0) then
         s = fmt_real(k%r)
       else
-        s = fmt_real(k%ra(1))
+        n = 0
+        call append_text(s, n, fmt_real(k%ra(1)))
         do j = 2, k%n
-          s = s//', '//fmt_real(k%ra(j))
+          call append_text(s, n, ', '//fmt_real(k%ra(j)))
         end do
+        s = s(:n)
       end if
     case (KEY_INTEGER)
       s = itoa(k%i)
@@ -364,10 +366,12 @@ contains
       if (k%n == 0) then
         s = quoted(trim(k%s))
       else
-        s = quoted(trim(k%sa(1)%s))
+        n = 0
+        call append_text(s, n, quoted(trim(k%sa(1)%s)))
         do j = 2, k%n
-          s = s//', '//quoted(trim(k%sa(j)%s))
+          call append_text(s, n, ', '//quoted(trim(k%sa(j)%s)))
         end do
+        s = s(:n)
       end if
     end select
   end function value_text
@@ -526,13 +530,19 @@ contains
   function quoted(s) result(q)
     character(len=*), intent(in) :: s
     character(len=:), allocatable :: q
-    integer :: j
-    q = ''''
+    integer :: j, n
+    allocate (character(len=2*len(s) + 2) :: q)
+    n = 1
+    q(1:1) = ''''
     do j = 1, len(s)
-      q = q//s(j:j)
-      if (s(j:j) == '''') q = q//'''' ! a quote inside a string is doubled
+      n = n + 1
+      q(n:n) = s(j:j)
+      if (s(j:j) == '''') then ! a quote inside a string is doubled
+        n = n + 1
+        q(n:n) = ''''
+      end if
     end do
-    q = q//''''
+    q = q(:n)//''''
   end function quoted
 
   !> `text` with every byte a terminal would not show as written replaced by its hex code in
@@ -543,9 +553,10 @@ contains
   function printable(text) result(s)
     character(len=*), intent(in) :: text
     character(len=:), allocatable :: s
-    integer :: j, b, n, m
+    integer :: j, b, n, m, ns
     character(len=*), parameter :: HEX = '0123456789abcdef'
-    s = ''
+    ns = 0
+    call append_text(s, ns, '')
     j = 1
     do while (j <= len(text))
       b = ichar(text(j:j))
@@ -558,19 +569,44 @@ contains
           if (ichar(text(j + m:j + m)) < 128 .or. ichar(text(j + m:j + m)) > 191) n = 0
         end do
         if (n > 0) then
-          s = s//text(j:j + n)
+          call append_text(s, ns, text(j:j + n))
           j = j + n + 1
           cycle
         end if
       end if
       if (b < 32 .or. b >= 127) then
-        s = s//'<'//HEX(b/16 + 1:b/16 + 1)//HEX(mod(b, 16) + 1:mod(b, 16) + 1)//'>'
+        call append_text(s, ns, '<'//HEX(b/16 + 1:b/16 + 1)// &
+                         HEX(mod(b, 16) + 1:mod(b, 16) + 1)//'>')
       else
-        s = s//text(j:j)
+        call append_text(s, ns, text(j:j))
       end if
       j = j + 1
     end do
+    s = s(:ns)
   end function printable
+
+  !> Append `piece` to the first `n` characters of `buf`, doubling its length when it is full,
+  !! so that building a text of many pieces takes time linear in its length (`s = s//piece`
+  !! copies the whole text each time). The text is buf(:n).
+  pure subroutine append_text(buf, n, piece)
+    character(len=:), allocatable, intent(inout) :: buf
+    integer, intent(inout) :: n
+    character(len=*), intent(in) :: piece
+    character(len=:), allocatable :: tmp
+    if (.not. allocated(buf)) then
+      allocate (character(len=max(64, 2*len(piece))) :: buf)
+      n = 0
+    else if (n + len(piece) > len(buf)) then
+      ! copied twice rather than with move_alloc, which gfortran gets wrong for deferred-length
+      ! strings (the new length is lost)
+      tmp = buf(:n)
+      deallocate (buf)
+      allocate (character(len=max(2*(n + len(piece)), 64)) :: buf)
+      buf(:n) = tmp
+    end if
+    buf(n + 1:n + len(piece)) = piece
+    n = n + len(piece)
+  end subroutine append_text
 
   !> `n` and the noun, plural unless n is 1: '1 rank', '2 ranks'.
   function counted(n, noun) result(s)

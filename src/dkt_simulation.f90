@@ -27,7 +27,7 @@ module dkt_simulation
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
   use dkt_io, only: io_close
-  use dkt_registry, only: itoa
+  use dkt_registry, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
   use dkt_output, only: output_fields, output_particles, output_close, output_final, &
                         output_scheduled, output_mark_finished
@@ -37,6 +37,10 @@ module dkt_simulation
   implicit none
   private
   public :: simulation_t, simulation_setup, simulation_run, simulation_finish
+
+  !> the most particle sub-steps per fluid step a run takes (docs/running.md): more means a
+  !! contact law so stiff (collision.stiffness far below its default) that the run never ends
+  integer, parameter :: MAX_SUBSTEPS = 10000
 
 contains
 
@@ -122,10 +126,11 @@ contains
   !! and the fluid inside them set to their velocity.
   subroutine setup_particles(sim)
     type(simulation_t), intent(inout) :: sim
-    integer :: n, k
+    integer :: n, k, nsub
     integer, allocatable :: motion(:)
     integer :: scheme
     character(len=256) :: line
+    character(len=:), allocatable :: needs
     n = sim%cfg%particles%count
     allocate (motion(n))
     do k = 1, n
@@ -148,13 +153,25 @@ contains
                           sim%cfg%coupling%interior == 'fluid')
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
-    ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so
-    if (particles_stable_substeps(sim%parts) > sim%parts%substeps) then
+    ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so;
+    ! more than MAX_SUBSTEPS means a stiffness far off (a run that would never end) and is refused
+    nsub = particles_stable_substeps(sim%parts)
+    if (nsub > MAX_SUBSTEPS) then
+      needs = itoa(nsub)
+      if (nsub == huge(nsub)) needs = 'more than '//needs
+      call fatal_all(trim(sim%cfg%file)//': &collision stiffness = '// &
+                     fmt_real(sim%cfg%collision%stiffness)//', stiffness_overlap = '// &
+                     fmt_real(sim%cfg%collision%stiffness_overlap)//': the explicit particle '// &
+                     'update needs '//needs//' sub-steps per fluid step to stay stable; '// &
+                     'allowed: at most '//itoa(MAX_SUBSTEPS)//' sub-steps; make stiffness '// &
+                     'and stiffness_overlap larger (a softer contact law)')
+    end if
+    if (nsub > sim%parts%substeps) then
       write (line, '(a,i0,a,i0,a)') 'collision stiffness: the explicit particle update needs ', &
-        particles_stable_substeps(sim%parts), ' sub-steps per fluid step to stay stable; '// &
+        nsub, ' sub-steps per fluid step to stay stable; '// &
         'using them instead of collision.substeps = ', sim%parts%substeps, &
         ' (the contact law is unchanged)'
-      sim%parts%substeps = particles_stable_substeps(sim%parts)
+      sim%parts%substeps = nsub
       call log_line(trim(line))
     end if
     call particles_find_links(sim%parts, sim%dom)

@@ -12,7 +12,7 @@ program dktlbm
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
   use dkt_report, only: report_summary
   use dkt_checkpoint_policy, only: checkpoint_resume
-  use dkt_output, only: output_open, output_check_existing
+  use dkt_output, only: output_open, output_check_existing, output_check_dir
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -58,6 +58,7 @@ program dktlbm
   ! --check sets up all but the lattices (the memory check included), reports and refuses
   ! what the run would refuse
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
+  call output_check_dir(sim)
   if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
   call report_summary(sim)
   if (cli%check) then

@@ -4,10 +4,12 @@
 !>  - overlapping disks: (X_i - X_j)(R_i + R_j - d)/eps'_p;
 !>  - a wall acts as the mirror particle with half the stiffness (E11): the range test is on
 !>    d' - 2R, twice the gap to the wall.
+!>  - collision_force_on(k) gives particle k's force of collision_forces with the same bits, in a
+!>    crowd of disks some touching, some overlapping, some near the walls.
 program test_collisions
   use dkt_kinds, only: wp
   use dkt_check, only: check, finish
-  use dkt_collisions, only: collision_forces
+  use dkt_collisions, only: collision_forces, collision_force_on
   implicit none
   real(wp) :: cx(2), cy(2), x(2), y(2), r(2)
   real(wp), parameter :: eps = 2.0_wp, eps_ov = 0.5_wp, xi = 1.0_wp, big = 1.0e6_wp
@@ -51,6 +53,33 @@ program test_collisions
                         cx(1:1), cy(1:1))
   call check('closed ends push the disk back', cy(1) > 0.0_wp, cy(1))
 
+  call one_particle_same_bits()
+
   call finish()
+
+contains
+
+  !> 60 disks of radius 2..3 dropped at random into a 40 x 40 box: many within the range or
+  !! overlapping each other or a wall; every particle's force alone equals the crowd's.
+  subroutine one_particle_same_bits()
+    integer, parameter :: n = 60
+    real(wp) :: px(n), py(n), pr(n), fx(n), fy(n), gx, gy
+    integer :: k, bad
+    call random_seed()
+    call random_number(px)
+    call random_number(py)
+    call random_number(pr)
+    px = 40.0_wp*px
+    py = 40.0_wp*py
+    pr = 2.0_wp + pr
+    call collision_forces(px, py, pr, 40.0_wp, 40.0_wp, .true., eps, eps_ov, xi, fx, fy)
+    bad = 0
+    do k = 1, n
+      call collision_force_on(k, px, py, pr, 40.0_wp, 40.0_wp, .true., eps, eps_ov, xi, gx, gy)
+      if (gx /= fx(k) .or. gy /= fy(k)) bad = bad + 1
+    end do
+    call check('one particle''s force has the bits of collision_forces', bad == 0, real(bad, wp))
+    call check('the crowd is in contact', count(fx /= 0.0_wp) > n/2, real(count(fx /= 0.0_wp), wp))
+  end subroutine one_particle_same_bits
 
 end program test_collisions

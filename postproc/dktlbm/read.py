@@ -278,6 +278,19 @@ def text_attr(value: Any) -> str:
     return str(value).rstrip("\0").strip()
 
 
+def run_namelist(h5: Any) -> str:
+    """The namelist text a run stored in /run of the open file `h5`: the attribute `namelist`,
+    or for a long one (some 500 particles and more) the dataset /run/namelist; '' if neither."""
+    run = h5.get("run")
+    if run is None:
+        return ""
+    if "namelist" in run.attrs:
+        return text_attr(run.attrs["namelist"])
+    if "namelist" in run:
+        return text_attr(run["namelist"][()])
+    return ""
+
+
 def _num(value: Any) -> float:
     return float(np.asarray(value, dtype=float).ravel()[0])
 
@@ -470,7 +483,7 @@ def run_t_ref(path: str | Path) -> float:
         attrs = h5["run"].attrs if "run" in h5 else {}
         if "t_ref" in attrs:
             return _num(attrs["t_ref"])
-        text = text_attr(attrs["namelist"]) if "namelist" in attrs else ""
+        text = run_namelist(h5)
     try:
         return RunSettings(text).number("run", "t_ref")
     except LaunchError as exc:
@@ -509,7 +522,7 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
     offset = np.asarray(p["window_offset"][()], dtype=float) if "window_offset" in p else None
 
     run_attrs = h5["run"].attrs if "run" in h5 else {}
-    settings = RunSettings(text_attr(run_attrs["namelist"]) if "namelist" in run_attrs else "")
+    settings = RunSettings(run_namelist(h5))
     numbers = numeric_attrs(run_attrs)
     dx = _num(run_attrs["dx"]) if "dx" in run_attrs else math.nan
     dt = _num(run_attrs["dt"]) if "dt" in run_attrs else math.nan
