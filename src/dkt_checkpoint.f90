@@ -163,12 +163,11 @@ contains
   !! value against its digest (when the file has digests), and the particles, episodes and
   !! populations must be finite. err is '' on success, else the same message on every rank,
   !! naming the file, the dataset and the value.
-  subroutine checkpoint_read(path, comm, f, nx, ny, nyl, y0, np, chk, err)
+  subroutine checkpoint_read(path, comm, f, nx, ny, nyl, y0, chk, err)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(lattice_t), intent(inout) :: f
     integer, intent(in) :: nx, ny, nyl, y0 !! this run's lattice and slab
-    integer, intent(in) :: np              !! this run's particles
     type(checkpoint_t), intent(out) :: chk
     character(len=:), allocatable, intent(out) :: err
     type(io_file_t) :: pf

@@ -148,7 +148,7 @@ contains
     character(len=512) :: msg
     integer :: k
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
-                         sim%dom%y0, merge(sim%parts%n, 0, sim%particles_on), chk, err)
+                         sim%dom%y0, chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
