@@ -242,6 +242,8 @@ module dkt_config
   character(len=*), parameter :: OPTIONS = '--set group.key=value, --set=group.key=value, '// &
                                  '--restart CHECKPOINT, --check, --print-defaults, --help, '// &
                                  '--version'
+  character(len=*), parameter :: RESTART_NEEDS = 'option --restart needs a checkpoint file: '// &
+                                 '--restart runs/case1/case1_chk_000010000.h5'
   character(len=*), parameter :: NL = new_line('a')
   real(wp), parameter :: WHOLE_TOL = 1.0e-6_wp !! how close width/dx must be to a whole number
   real(wp), parameter :: MAX_CELLS = 1.0e9_wp  !! more cells on one axis is surely a typing error
@@ -1854,12 +1856,13 @@ contains
         call add_override(trim(args(j)))
       case ('--restart')
         if (j == size(args)) then
-          err = 'option --restart needs a checkpoint file: --restart runs/case1/'// &
-                'case1_chk_000010000.h5'
+          err = RESTART_NEEDS
           return
         end if
         j = j + 1
         cli%restart = trim(args(j))
+        ! an empty value (--restart '') would otherwise start a fresh run
+        if (len(cli%restart) == 0) err = RESTART_NEEDS
       case ('--check')
         cli%check = .true.
       case ('--print-defaults')
@@ -1873,6 +1876,7 @@ contains
           call add_override(arg(7:))
         else if (index(arg, '--restart=') == 1) then
           cli%restart = arg(11:)
+          if (len(cli%restart) == 0) err = RESTART_NEEDS
         else if (index(arg, '-') == 1 .and. len(arg) > 1) then
           err = 'unknown option '''//arg//'''; options: '//OPTIONS//NL//USAGE
         else if (len(cli%nml_file) > 0) then

@@ -578,6 +578,19 @@ def test_missing_namelist_file(tmp_path: Path) -> None:
     assert str(missing) in msg and "cannot open" in msg, msg
 
 
+@pytest.mark.parametrize("restart", [["--restart="], ["--restart", ""]], ids=["equals", "apart"])
+def test_an_empty_restart_value_is_refused(tmp_path: Path, restart: list[str]) -> None:
+    """Catches: `--restart=` or `--restart ''` (an unset shell variable) taken as no restart at
+    all, which started a fresh run instead of the resumed one the user asked for."""
+    scene, _ = write_scene(tmp_path)
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    outdir = tmp_path / "out"
+    proc = dkt([str(scene), "--set", f"output.dir={outdir}", *restart], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    assert "option --restart needs a checkpoint file" in msg, msg
+
+
 # ny = height/dx rows; a slab needs MIN_SLAB_ROWS = 2 rows (docs/design.md, "Data layout": slabs
 # with one ghost row each side), so at most ny // 2 ranks can work.
 @pytest.mark.parametrize(
