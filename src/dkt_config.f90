@@ -1930,12 +1930,35 @@ contains
       deallocate (text)
       allocate (character(len=nbytes) :: text)
       read (unit, iostat=ios, iomsg=msg) text
+    else
+      ! no size: a pipe (/dev/stdin, <(...)) or an empty file; read to its end
+      call read_to_end(ios)
     end if
-    if (nbytes < 0 .or. ios /= 0) then
-      if (nbytes < 0) msg = 'its size is unknown'
-      err = 'cannot read namelist file '''//path//''': '//trim(msg)
-    end if
+    if (ios /= 0) err = 'cannot read namelist file '''//path//''': '//trim(msg)
     close (unit)
+  contains
+    !> text = every byte up to the end of the unit, in a buffer that doubles (linear time).
+    subroutine read_to_end(ios)
+      integer, intent(out) :: ios
+      character(len=:), allocatable :: buffer, grown
+      character(len=1) :: c
+      integer :: n
+      allocate (character(len=4096) :: buffer)
+      n = 0
+      do
+        read (unit, iostat=ios, iomsg=msg) c
+        if (ios /= 0) exit
+        if (n == len(buffer)) then
+          allocate (character(len=2*len(buffer)) :: grown)
+          grown(1:n) = buffer(1:n)
+          call move_alloc(grown, buffer)
+        end if
+        n = n + 1
+        buffer(n:n) = c
+      end do
+      if (is_iostat_end(ios)) ios = 0
+      text = buffer(1:n)
+    end subroutine read_to_end
   end subroutine read_text_file
 
   !> Usage, options and a word on the input, to `unit`.

@@ -591,6 +591,26 @@ def test_an_empty_restart_value_is_refused(tmp_path: Path, restart: list[str]) -
     assert "option --restart needs a checkpoint file" in msg, msg
 
 
+def test_a_scene_read_from_a_pipe_is_the_scene_read_from_its_file(tmp_path: Path) -> None:
+    """Catches: a scene given as /dev/stdin (or `<(...)`), which has no size, called empty. Its
+    --check must print the same lattice as the file's (the output directory named apart)."""
+    scene = INPUT / "case1.nml"
+
+    def check(path: str, piped: str) -> str:
+        args = [str(EXE), path, "--check", "--set", f"output.dir={tmp_path / 'o'}"]
+        # input= makes standard input a pipe, which has no size
+        proc = subprocess.run(args, input=piped, capture_output=True, text=True,
+                              timeout=TIMEOUT, env=mpi_env(), cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout
+
+    from_pipe = check("/dev/stdin", scene.read_text())
+    from_file = check(str(scene), "")
+    lattice = [ln for ln in from_file.splitlines() if ln.startswith(("lattice", "dx", "dt"))]
+    assert lattice, from_file
+    assert all(ln in from_pipe.splitlines() for ln in lattice), (from_pipe, lattice)
+
+
 # ny = height/dx rows; a slab needs MIN_SLAB_ROWS = 2 rows (docs/design.md, "Data layout": slabs
 # with one ghost row each side), so at most ny // 2 ranks can work.
 @pytest.mark.parametrize(
