@@ -11,7 +11,8 @@ module dkt_config
   use dkt_store, only: PRECISION_NAMES
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
-                          allowed_text, origin_of, blame, quoted, fmt_real, fmt_num, itoa
+                          allowed_text, origin_of, blame, quoted, fmt_real, fmt_num, itoa, &
+                          append_text
   use dkt_namelist, only: parse_namelist, apply_override
   implicit none
   private
@@ -1937,24 +1938,18 @@ contains
     if (ios /= 0) err = 'cannot read namelist file '''//path//''': '//trim(msg)
     close (unit)
   contains
-    !> text = every byte up to the end of the unit, in a buffer that doubles (linear time).
+    !> text = every byte up to the end of the unit (append_text: linear time).
     subroutine read_to_end(ios)
       integer, intent(out) :: ios
-      character(len=:), allocatable :: buffer, grown
+      character(len=:), allocatable :: buffer
       character(len=1) :: c
       integer :: n
-      allocate (character(len=4096) :: buffer)
       n = 0
+      call append_text(buffer, n, '')
       do
         read (unit, iostat=ios, iomsg=msg) c
         if (ios /= 0) exit
-        if (n == len(buffer)) then
-          allocate (character(len=2*len(buffer)) :: grown)
-          grown(1:n) = buffer(1:n)
-          call move_alloc(grown, buffer)
-        end if
-        n = n + 1
-        buffer(n:n) = c
+        call append_text(buffer, n, c)
       end do
       if (is_iostat_end(ios)) ios = 0
       text = buffer(1:n)
