@@ -11,12 +11,12 @@ module dkt_collisions
 contains
 
   !> E10 between every pair and E11 against the mirror images across the side walls x = 0 and
-  !! x = width (and the ends y = 0 and y = height when they are walls).
-  pure subroutine collision_forces(x, y, r, width, height, walls_y, eps, eps_overlap, range, &
+  !! x = width, and across each end y = 0, y = height that is a wall (an end at rest).
+  pure subroutine collision_forces(x, y, r, width, height, end_walls, eps, eps_overlap, range, &
                                    cx, cy)
     real(wp), intent(in) :: x(:), y(:), r(:)    !! centres and radii
     real(wp), intent(in) :: width, height       !! channel size
-    logical, intent(in) :: walls_y              !! the ends are walls
+    logical, intent(in) :: end_walls(2)         !! the lower, the upper end is a wall
     real(wp), intent(in) :: eps, eps_overlap    !! eps_p and eps'_p of E10
     real(wp), intent(in) :: range               !! threshold xi of E10
     real(wp), intent(out) :: cx(:), cy(:)       !! force on each particle
@@ -34,20 +34,20 @@ contains
       end do
       ! E11: the mirror particle X' across each wall, 2 R in place of R_i + R_j, stiffness
       ! halved
-      call add_wall_forces(x(a), y(a), r(a), width, height, walls_y, eps, eps_overlap, range, &
-                           cx(a), cy(a))
+      call add_wall_forces(x(a), y(a), r(a), width, height, end_walls, eps, eps_overlap, &
+                           range, cx(a), cy(a))
     end do
   end subroutine collision_forces
 
   !> The contact force (fx, fy) on particle k alone: cx(k), cy(k) of collision_forces with the
   !! same arguments, summed in the same order (the pairs (a, k) for a < k, then (k, b) for b > k,
   !! then the walls), so with the same bits, in time linear in the number of particles.
-  pure subroutine collision_force_on(k, x, y, r, width, height, walls_y, eps, eps_overlap, &
+  pure subroutine collision_force_on(k, x, y, r, width, height, end_walls, eps, eps_overlap, &
                                      range, fx, fy)
     integer, intent(in) :: k                    !! the particle
     real(wp), intent(in) :: x(:), y(:), r(:)    !! centres and radii
     real(wp), intent(in) :: width, height       !! channel size
-    logical, intent(in) :: walls_y              !! the ends are walls
+    logical, intent(in) :: end_walls(2)         !! the lower, the upper end is a wall
     real(wp), intent(in) :: eps, eps_overlap    !! eps_p and eps'_p of E10
     real(wp), intent(in) :: range               !! threshold xi of E10
     real(wp), intent(out) :: fx, fy             !! force on particle k
@@ -65,20 +65,25 @@ contains
       fx = fx + gx
       fy = fy + gy
     end do
-    call add_wall_forces(x(k), y(k), r(k), width, height, walls_y, eps, eps_overlap, range, &
+    call add_wall_forces(x(k), y(k), r(k), width, height, end_walls, eps, eps_overlap, range, &
                          fx, fy)
   end subroutine collision_force_on
 
   !> Add to (fx, fy) the force of each wall on the disk at (x, y) of radius r, one wall after
-  !! the other (E11: the mirror disk, half the stiffness); the ends only when they are walls.
-  pure subroutine add_wall_forces(x, y, r, width, height, walls_y, eps, eps_overlap, range, &
+  !! the other (E11: the mirror disk, half the stiffness): the sides, then the lower end and the
+  !! upper end, each only when it is a wall. The order of the sums is the same whichever ends
+  !! are walls, so a scene with both ends walls keeps its bits.
+  pure subroutine add_wall_forces(x, y, r, width, height, end_walls, eps, eps_overlap, range, &
                                   fx, fy)
     real(wp), intent(in) :: x, y, r, width, height, eps, eps_overlap, range
-    logical, intent(in) :: walls_y
+    logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall
     real(wp), intent(inout) :: fx, fy
     real(wp) :: gx, gy, mx, my
     integer :: m
-    do m = 1, merge(4, 2, walls_y)
+    do m = 1, 4
+      if (m > 2) then
+        if (.not. end_walls(m - 2)) cycle
+      end if
       select case (m)
       case (1); mx = -x; my = y
       case (2); mx = 2.0_wp*width - x; my = y

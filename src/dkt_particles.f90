@@ -553,11 +553,11 @@ contains
   !! When every particle is fixed (moving false; the forces were summed on every rank), every
   !! rank computes the contact forces itself from the same state, with the same bits, and
   !! nothing is sent or refilled: no node is uncovered.
-  subroutine particles_move(ps, dom, f, walls_y, moving)
+  subroutine particles_move(ps, dom, f, end_walls, moving)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
-    logical, intent(in) :: walls_y   !! the channel ends are walls (collide with them too)
+    logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall (E11 against it)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     type(particle_t), allocatable :: old(:)
     real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), state(10)
@@ -574,7 +574,7 @@ contains
             xs(k) = p%x
             ys(k) = p%y
             call collision_force_on(k, xs, ys, old%r, real(dom%nx, wp), real(dom%ny, wp), &
-                                    walls_y, ps%stiffness, ps%stiffness_overlap, ps%range, &
+                                    end_walls, ps%stiffness, ps%stiffness_overlap, ps%range, &
                                     p%cx, p%cy)
             select case (p%motion)
             case (MOTION_FREE)

@@ -401,9 +401,7 @@ contains
     ! fixed particles only: every rank sums the forces, so that no state is sent back
     call particles_reduce_forces(sim%parts, sim%dom,.not. sim%particles_move)
     ! the owners move their particles (fixed ones stay) and send every rank the new state
-    call particles_move(sim%parts, sim%dom, sim%f_next, &
-                        sim%cfg%domain%lower == 'wall' .and. sim%cfg%domain%upper == 'wall', &
-                        sim%particles_move)
+    call particles_move(sim%parts, sim%dom, sim%f_next, ends_at_rest(sim), sim%particles_move)
     if (sim%window_on) call follow_particles(sim, n)
     if (sim%particles_move) call check_particle_places(sim, n, failure)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
@@ -429,10 +427,27 @@ contains
     call sweep_part(sim, 2)
   end subroutine fluid_interior_sweep
 
+  !> The ends a disk collides with by E11 (docs/model.md §4), lower and upper: the ends at
+  !! rest, a 'wall' or a 'velocity' end whose velocity is zero (both no-slip for the fluid). The
+  !! ends of a window are neither: they move with the particles (docs/model.md §5).
+  pure function ends_at_rest(sim) result(rest)
+    type(simulation_t), intent(in) :: sim
+    logical :: rest(2)
+    rest = [at_rest(sim%bc%lower), at_rest(sim%bc%upper)] .and. .not. sim%window_on
+  contains
+    pure logical function at_rest(kind)
+      integer, intent(in) :: kind
+      at_rest = kind == END_WALL .or. (kind == END_VELOCITY .and. sim%bc%u_in == 0.0_wp)
+    end function at_rest
+  end function ends_at_rest
+
   !> Why the run must stop ('' if it need not): a particle left the lattice (its centre beyond
-  !! a side or an end), a prescribed particle reached a wall, or a prescribed particle entered
+  !! a side or an end), a prescribed particle reached a wall, a prescribed particle entered
   !! another body: a fixed or prescribed one at contact, a free one deeper than the larger
-  !! radius (a free particle normally makes way; one pinned against a wall cannot). The input
+  !! radius (a free particle normally makes way; one pinned against a wall cannot), or a free
+  !! particle came within collision.range (at least a spacing) of an open or moving end (no E11
+  !! holds it there, and the flow through the end would blow up around it; docs/model.md §4).
+  !! The input
   !! check refuses what a constant prescribed velocity makes predictable; this catches what it
   !! cannot (a moving window, free particles). Every rank holds the same particle states, so
   !! every rank returns the same failure at the same step and the loop stops them together.
@@ -440,18 +455,27 @@ contains
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure
-    real(wp) :: nx, ny, y0, dist, reach
+    real(wp) :: nx, ny, y0, dist, reach, near
     integer :: k, m
-    character(len=:), allocatable :: what
+    character(len=:), allocatable :: what, advice
     character(len=160) :: where
-    logical :: walls_x, wall_lo, wall_hi
+    logical :: walls_x, wall_lo, wall_hi, open_lo, open_hi
     nx = real(sim%lp%nx, wp)
     ny = real(sim%lp%ny, wp)
     walls_x = sim%cfg%domain%sides == 'wall'
     wall_lo = sim%cfg%domain%lower == 'wall' .and. .not. sim%window_on
     wall_hi = sim%cfg%domain%upper == 'wall' .and. .not. sim%window_on
+    ! (periodic ends take no particles: the input refuses them)
+    associate (rest => ends_at_rest(sim))
+      open_lo = .not. (rest(1) .or. sim%window_on)
+      open_hi = .not. (rest(2) .or. sim%window_on)
+    end associate
+    ! docs/model.md §4: the contact range, at least a spacing (a surface past the end row's nodes
+    ! makes the flow through the end blow up within a few steps)
+    near = max(sim%parts%range, 1.0_wp)
     do k = 1, sim%parts%n
       what = ''
+      advice = ''
       associate (p => sim%parts%p(k))
         ! (first: an ordered comparison with NaN traps in the checked build)
         if (.not. (ieee_is_finite(p%x) .and. ieee_is_finite(p%y))) then
@@ -477,8 +501,16 @@ contains
               if (dist < reach) what = 'it entered particle '//itoa(m)
             end associate
           end do
+        else if (p%motion == MOTION_FREE) then
+          if (open_lo .and. p%y - p%r < near) what = open_end('lower', sim%bc%lower)
+          if (open_hi .and. ny - p%y - p%r < near) what = open_end('upper', sim%bc%upper)
+          if (len(what) > 0) advice = 'Close that end (a ''wall'', or a ''velocity'' end '// &
+                                      'with &inlet velocity = 0: E11 holds the particle '// &
+                                      'there), make the channel longer (&domain height)'
         end if
         if (len(what) == 0) cycle
+        if (len(advice) == 0) advice = 'Change its velocity or start (&particles u, v, x, y '// &
+                                       'of particle '//itoa(k)//')'
         y0 = 0.0_wp
         if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
         write (where, '(a,es12.5,a,es12.5,a,i0,a,es12.5,a)') ' at (x, y) = (', &
@@ -486,12 +518,26 @@ contains
       end associate
       failure = trim(sim%cfg%file)//': particle '//itoa(k)//' (motion = '// &
                 quoted_motion(sim%cfg%particles%motion(k))//'): '//what//trim(where)// &
-                '; the run stops. Change its velocity or start (&particles u, v, x, y of '// &
-                'particle '//itoa(k)//'), or end the run earlier'
+                '; the run stops. '//advice//', or end the run earlier'
       return
     end do
     failure = ''
   contains
+    !> 'its surface came within .. spacings of the lower end (an open end, ...)'
+    function open_end(which, kind) result(s)
+      character(len=*), intent(in) :: which
+      integer, intent(in) :: kind
+      character(len=:), allocatable :: s
+      if (kind == END_OUTFLOW) then
+        s = 'an open end, &domain '//which//' = ''outflow'''
+      else
+        s = 'a moving end, &domain '//which//' = ''velocity'' with &inlet velocity = '// &
+            fmt_real(sim%cfg%inlet%velocity)//' cm/s'
+      end if
+      s = 'its surface came within '//fmt_real(near)//' lattice spacings (collision.range, '// &
+          'at least 1) of the '//which//' end ('//s//': no wall force E11 holds it there)'
+    end function open_end
+
     function quoted_motion(m) result(q)
       character(len=*), intent(in) :: m
       character(len=:), allocatable :: q
