@@ -1399,6 +1399,16 @@ contains
                               d%upper == 'wall', '&domain lower = '//quoted(trim(d%lower))// &
                               ', upper = '//quoted(trim(d%upper)))
           if (len(err) > 0) return
+        else if (abs(p%y(k)) > 2.0_wp**31*c%lbm%dx - d%height) then
+          ! docs/model.md §5: the window and its particles stay within 2^31 spacings of y = 0,
+          ! where a double resolves the position to 2^-21 dx; further out a step's motion is lost
+          err = from('particles.y pair.y_upper lbm.dx lbm.cells_per_diameter window.below '// &
+                     'window.above')//': &particles y('//itoa(k)//') = '//fmt_num(p%y(k))// &
+                ' cm (or &pair y_upper) in a window scene with dx = '//fmt_num(c%lbm%dx)// &
+                ' cm: too far from y = 0 for the absolute positions to resolve a step''s '// &
+                'motion; allowed: |y('//itoa(k)//')| <= 2^31 dx - window length = '// &
+                fmt_num(round6(2.0_wp**31*c%lbm%dx - d%height, down=.true.))//' cm'
+          return
         end if
 
         cells = p%diameter(k)/c%lbm%dx

@@ -253,6 +253,21 @@ CASES = {
             "allowed: above >=",
         ],
     ),
+    # a window's rows and particles are placed from y = 0 in double precision: at 10^12 cm the
+    # spacing of doubles (1.2e-4 cm) is no longer small against a step's motion; the bound is
+    # checked in test_window_position_bound_is_2_to_the_31_spacings_less_the_window below
+    "window-particle-too-far-from-y-0": Case(
+        args=["--set", "pair.y_upper=1e12"],
+        base="case1.nml",
+        pieces=[
+            "{file}",
+            "--set pair.y_upper=1e12",
+            f"y(1) = {1e12:.1f} cm",
+            "&pair y_upper",
+            "window",
+            "allowed: |y(1)| <=",
+        ],
+    ),
     # a pair scene writes particles 1 and 2 itself
     "pair-with-particles-count": Case(
         args=["--set", "particles.count=2"],
@@ -542,6 +557,33 @@ def test_window_above_bound_holds_the_particles(tmp_path: Path) -> None:
     assert fits.returncode == 0, fits.stderr
     short = dkt([*common, "--set", "window.above=21.4", "--check"], cwd)
     assert short.returncode != 0 and "&window" in short.stderr, short.stderr
+
+
+def test_window_position_bound_is_2_to_the_31_spacings_less_the_window(tmp_path: Path) -> None:
+    """The largest |y| offered for a particle of a window scene is 2^31 dx less the window's
+    length (docs/model.md §5): case1 with gamma = 1, D_1 = 0.2 cm and 10 spacings per diameter
+    has dx = 2 cm/100 and a window of (10 + 15) D_1 = 5 cm. The bound printed (six digits,
+    rounded down) holds and is within 1e-5 of that; a pair with its upper centre on the bound
+    is accepted by --check, one just beyond it or far below y = 0 is refused. Catches a bound
+    in cm instead of spacings, one that forgets the window, or a check of y instead of |y|."""
+    scene, _ = write_scene(tmp_path, base="case1.nml")
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    outdir = tmp_path / "out"
+    common = [str(scene), "--set", "pair.gamma=1", "--set", "pair.d1=0.2"]
+    common += ["--set", "lbm.cells_per_diameter=10", "--set", "window.below=10"]
+    common += ["--set", "window.above=15"]
+    proc = dkt([*common, "--set", "pair.y_upper=1e9", "--set", f"output.dir={outdir}"], cwd)
+    msg = assert_clean_failure(proc, outdir, cwd)
+    bound = number_after("2^31 dx - window length =", msg)
+    exact = 2.0**31 * (2.0 / 100) - 25 * 0.2
+    assert exact * (1 - 1e-5) <= bound <= exact, msg
+    on = dkt([*common, "--set", f"pair.y_upper={bound!r}", "--check"], cwd)
+    assert on.returncode == 0, on.stderr
+    beyond = dkt([*common, "--set", f"pair.y_upper={exact * (1 + 1e-6)!r}", "--check"], cwd)
+    assert beyond.returncode != 0 and "2^31 dx" in beyond.stderr, beyond.stderr
+    below = dkt([*common, "--set", f"pair.y_upper={-2 * exact!r}", "--check"], cwd)
+    assert below.returncode != 0 and "2^31 dx" in below.stderr, below.stderr
 
 
 def test_a_pair_run_too_short_to_classify_is_warned_about_but_allowed(tmp_path: Path) -> None:
