@@ -1395,9 +1395,14 @@ contains
                             d%sides == 'wall', '&domain sides = '//quoted(trim(d%sides)))
         if (len(err) > 0) return
         if (.not. c%window%enabled) then
-          call check_position('y', k, p%y(k), 'height', d%height, d%lower == 'wall', &
-                              d%upper == 'wall', '&domain lower = '//quoted(trim(d%lower))// &
-                              ', upper = '//quoted(trim(d%upper)))
+          ! an end at rest, a 'wall' or a 'velocity' end at zero velocity, is a wall for E11
+          call check_position('y', k, p%y(k), 'height', d%height, d%lower == 'wall' .or. &
+                              (d%lower == 'velocity' .and. c%inlet%velocity == 0.0_wp), &
+                              d%upper == 'wall' .or. &
+                              (d%upper == 'velocity' .and. c%inlet%velocity == 0.0_wp), &
+                              '&domain lower = '//quoted(trim(d%lower))//', upper = '// &
+                              quoted(trim(d%upper))//', &inlet velocity = '// &
+                              val('inlet', 'velocity'))
           if (len(err) > 0) return
         else if (abs(p%y(k)) > 2.0_wp**31*c%lbm%dx - d%height) then
           ! docs/model.md §5: the window and its particles stay within 2^31 spacings of y = 0,

@@ -268,6 +268,20 @@ CASES = {
             "allowed: |y(1)| <=",
         ],
     ),
+    # a 'velocity' end at rest is a wall for the particles (E11): a disk may not start on it
+    "particle-overlapping-a-velocity-end-at-rest": Case(
+        args=["--set", "domain.lower=velocity", "--set", "particles.y=0.1"],
+        base="single.nml",
+        pieces=[
+            "{file}",
+            "--set particles.y=0.1",
+            "y(1) = 0.1",
+            "lower = 'velocity'",
+            "&inlet velocity = 0.0",
+            "overlaps the wall at y = 0",
+            "allowed: 0.125 < y(1)",
+        ],
+    ),
     # a pair scene writes particles 1 and 2 itself
     "pair-with-particles-count": Case(
         args=["--set", "particles.count=2"],
