@@ -81,14 +81,15 @@ contains
     real(wp) :: gx, gy, mx, my
     integer :: m
     do m = 1, 4
-      if (m > 2) then
-        if (.not. end_walls(m - 2)) cycle
-      end if
       select case (m)
       case (1); mx = -x; my = y
       case (2); mx = 2.0_wp*width - x; my = y
-      case (3); mx = x; my = -y
-      case default; mx = x; my = 2.0_wp*height - y
+      case (3)
+        if (.not. end_walls(1)) cycle
+        mx = x; my = -y
+      case default
+        if (.not. end_walls(2)) cycle
+        mx = x; my = 2.0_wp*height - y
       end select
       call repel(x, y, mx, my, 2.0_wp*r, 0.5_wp*eps, 0.5_wp*eps_overlap, range, gx, gy)
       fx = fx + gx
