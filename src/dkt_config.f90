@@ -11,8 +11,8 @@ module dkt_config
   use dkt_store, only: PRECISION_NAMES
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, find_key, check_key, value_text, &
-                          allowed_text, origin_of, blame, quoted, fmt_real, fmt_num, itoa, &
-                          append_text
+                          allowed_text, origin_of, blame
+  use dkt_text, only: quoted, fmt_real, fmt_num, itoa, append_text
   use dkt_namelist, only: parse_namelist, apply_override
   implicit none
   private

@@ -24,9 +24,9 @@ module dkt_namelist
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_registry, only: registry_t, key_t, KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, &
-                          KEY_CHOICE, read_real, find_key, has_group, unknown_group_hint, &
-                          unknown_key_hint, allowed_text, text_length, lower_case, quoted, itoa, &
-                          append_text
+                          KEY_CHOICE, find_key, has_group, unknown_group_hint, unknown_key_hint, &
+                          allowed_text, text_length
+  use dkt_text, only: read_real, lower_case, quoted, itoa, append_text
   implicit none
   private
   public :: parse_namelist, apply_override

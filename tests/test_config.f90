@@ -10,7 +10,7 @@ program test_config
                         config_check_text, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
                         config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES
-  use dkt_registry, only: printable
+  use dkt_text, only: printable
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
