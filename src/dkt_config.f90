@@ -38,6 +38,11 @@ module dkt_config
 
   character(len=*), parameter :: NL = new_line('a')
 
+  !> One text of a list of texts of different lengths.
+  type :: text_t
+    character(len=:), allocatable :: s
+  end type text_t
+
 contains
 
   !> Defaults, then the namelist `text`, then the `overrides` ('group.key=value'), then
@@ -57,6 +62,7 @@ contains
     character(len=:), allocatable :: found
     type(lattice_params_t) :: derived
     type(registry_t), target :: reg
+    type(text_t), allocatable :: defaults(:)
     integer :: j
     if (present(warnings)) warnings = ''
     cfg%file = file
@@ -65,6 +71,7 @@ contains
     if (len(err) > 0) return
     call particles_allocate(cfg%particles, j)
     call config_registry(cfg, reg)
+    call value_texts(reg, defaults) ! cfg holds the defaults until the text is read
     call parse_namelist(reg, text, file, err)
     if (len(err) > 0) return
     do j = 1, size(overrides)
@@ -76,7 +83,7 @@ contains
       call check_key(reg%keys(j), cfg%file, err)
       if (len(err) > 0) return
     end do
-    call namelist_text(reg, found)
+    call namelist_text(reg, defaults, found)
     call move_alloc(found, cfg%given)
     call expand(cfg, reg, err)
     if (len(err) > 0) return
@@ -197,24 +204,37 @@ contains
   subroutine config_to_namelist(cfg, text)
     type(config_t), intent(in) :: cfg
     character(len=:), allocatable, intent(out) :: text
-    type(config_t), target :: c
-    type(registry_t) :: reg
+    type(config_t), target :: c, defaults ! `defaults` keeps its initial (default) values
+    type(registry_t) :: reg, dreg
+    type(text_t), allocatable :: default_texts(:)
     c = cfg
     call config_registry(c, reg)
-    call namelist_text(reg, text)
+    ! the default column lists as many elements as the value column
+    call particles_allocate(defaults%particles, size(c%particles%diameter))
+    call config_registry(defaults, dreg)
+    call value_texts(dreg, default_texts)
+    call namelist_text(reg, default_texts, text)
   end subroutine config_to_namelist
 
-  !> The keys of `reg` with their values as namelist text (config_to_namelist).
-  subroutine namelist_text(reg, text)
+  !> The value of each key of `reg` as text, in the registry's order.
+  subroutine value_texts(reg, texts)
     type(registry_t), intent(in) :: reg
+    type(text_t), allocatable, intent(out) :: texts(:)
+    integer :: j
+    allocate (texts(size(reg%keys)))
+    do j = 1, size(reg%keys)
+      texts(j)%s = value_text(reg%keys(j))
+    end do
+  end subroutine value_texts
+
+  !> The keys of `reg` with their values, and `defaults` (value_texts of the same keys at
+  !! their defaults), as namelist text (config_to_namelist).
+  subroutine namelist_text(reg, defaults, text)
+    type(registry_t), intent(in) :: reg
+    type(text_t), intent(in) :: defaults(:)
     character(len=:), allocatable, intent(out) :: text
-    type(config_t), target :: defaults ! keeps its initial (default) values
-    type(registry_t) :: dreg
     character(len=:), allocatable :: line
     integer :: j
-    ! the default column lists as many elements as the value column
-    call particles_allocate(defaults%particles, reg%keys(find_key(reg, 'particles', 'diameter'))%n)
-    call config_registry(defaults, dreg)
     text = '! dktlbm input: every key with its value. Units cm, g, s. Each key''s comment:'//NL// &
            '! [unit] default: ..; allowed: ..; meaning. Reference: input/README.md.'//NL
     do j = 1, size(reg%keys)
@@ -226,7 +246,7 @@ contains
         end if
         line = '  '//k%name//' = '//value_text(k)
         line = line//repeat(' ', max(1, 34 - len(line)))
-        text = text//line//'! ['//k%unit//'] default: '//value_text(dreg%keys(j))// &
+        text = text//line//'! ['//k%unit//'] default: '//defaults(j)%s// &
                '; allowed: '//allowed_text(k)//'; '//k%meaning//NL
       end associate
     end do

@@ -10,7 +10,7 @@ module dkt_config_checks
   use dkt_registry, only: registry_t, find_key, value_text, origin_of, blame
   use dkt_text, only: quoted, fmt_real, fmt_num, itoa
   use dkt_config_types, only: config_t
-  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob
+  use dkt_config_scene, only: largest_diameter, window_bottom
   use dkt_config_lattice, only: lattice_params_t
   implicit none
   private

@@ -30,7 +30,6 @@ module dkt_config_checks_run
   !> a time step outside DT_MIN..DT_MAX s comes from a viscosity or density in the wrong units
   !! (no flow on a cm lattice needs it), and makes the lattice-unit forces under- or overflow
   real(wp), parameter :: DT_MIN = 1.0e-12_wp, DT_MAX = 1.0e6_wp
-  real(wp), parameter :: TAU_MAX = 10.0_wp !! the largest lbm.tau, typed or set by lbm.mach
   character(len=*), parameter :: NL = new_line('a')
 
 contains

@@ -29,8 +29,7 @@ module dkt_namelist
   use dkt_text, only: read_real, lower_case, quoted, itoa, append_text
   use dkt_namelist_lexer, only: token_t, tokenize, display, no_blanks, make_token, append, &
                                 BLANKS, TOK_WORD, TOK_STRING, TOK_EQ, TOK_COMMA, TOK_END, &
-                                TOK_GROUP, TOK_NULL, TOK_SUB, TOK_BAD, BAD_PAREN, BAD_STRING, &
-                                BAD_AMPERSAND
+                                TOK_GROUP, TOK_NULL, TOK_SUB, TOK_BAD, BAD_PAREN, BAD_STRING
   implicit none
   private
   public :: parse_namelist, apply_override
