@@ -34,9 +34,9 @@ module dkt_checkpoint
   use dkt_kinds, only: wp, sp
   use dkt_store, only: lattice_t, lattice_precision_name
   use dkt_filesystem, only: rename_file
-  use dkt_registry, only: itoa
+  use dkt_text, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
-  use dkt_config, only: MAX_PARTICLES
+  use dkt_kinds, only: MAX_PARTICLES
   use dkt_io, only: io_file_t, io_file_open, io_file_close, io_put_real, &
                     io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none

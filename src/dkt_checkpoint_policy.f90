@@ -14,7 +14,7 @@ module dkt_checkpoint_policy
   use dkt_signals, only: signals_install, signal_mask, signal_name
   use dkt_log, only: log_line
   use dkt_filesystem, only: remove_file, write_marker
-  use dkt_registry, only: itoa
+  use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t, path_t
   use dkt_restart_check, only: restart_problem
   use dkt_store, only: lattice_precision_name

@@ -5,7 +5,7 @@ module dkt_errors
   use mpi_f08, only: MPI_COMM_WORLD, MPI_Comm_rank, MPI_Abort, MPI_Finalize, MPI_Initialized, &
                      MPI_Finalized
   use dkt_log, only: log_record, log_close
-  use dkt_registry, only: printable, itoa
+  use dkt_text, only: printable, itoa
   implicit none
   private
   public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME

@@ -5,6 +5,7 @@ module dkt_lattice
   implicit none
   private
   public :: q, ex, ey, w, opp, moment_matrix, moment_norm, equilibrium, moment_names
+  public :: e3_heat_flux_rate
 
   integer, parameter :: q = 9 !! number of discrete velocities
   !> lattice velocities e_i = (ex(i), ey(i)), i = 0..8, in the order of docs/model.md §1
@@ -35,6 +36,13 @@ module dkt_lattice
                                  ['rho', 'e  ', 'eps', 'jx ', 'qx ', 'jy ', 'qy ', 'pxx', 'pxy']
 
 contains
+
+  !> E3: the heat-flux rate s_q = 8(2 - s_nu)/(8 - s_nu) that places a bounce-back wall exactly
+  !! half-way between nodes, whatever the viscosity.
+  pure real(wp) function e3_heat_flux_rate(s_nu) result(s_q)
+    real(wp), intent(in) :: s_nu !! viscous rate 1/tau
+    s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
+  end function e3_heat_flux_rate
 
   !> Second-order equilibrium f_i^eq(rho, u); its moments under E1 are exactly E2.
   pure function equilibrium(rho, ux, uy) result(feq)

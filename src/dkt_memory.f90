@@ -9,7 +9,7 @@ module dkt_memory
   use dkt_errors, only: fatal_all
   use dkt_config, only: config_t, lattice_params_t, largest_diameter
   use dkt_domain, only: domain_t
-  use dkt_registry, only: fmt_real, counted
+  use dkt_text, only: fmt_real, counted
   use dkt_store, only: lattice_bytes
   implicit none
   private

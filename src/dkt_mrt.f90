@@ -10,7 +10,7 @@
 !> enters through Guo's forcing term in moment space; a scene without one does not compute it.
 module dkt_mrt
   use dkt_kinds, only: wp, sp
-  use dkt_lattice, only: w
+  use dkt_lattice, only: w, e3_heat_flux_rate
   use dkt_store, only: lattice_t
   implicit none
   private
@@ -47,13 +47,6 @@ module dkt_mrt
   integer, parameter :: up3(3) = [2, 5, 6] !! the populations with c_y = +1
 
 contains
-
-  !> E3: the heat-flux rate s_q = 8(2 - s_nu)/(8 - s_nu) that places a bounce-back wall exactly
-  !! half-way between nodes, whatever the viscosity.
-  pure real(wp) function e3_heat_flux_rate(s_nu) result(s_q)
-    real(wp), intent(in) :: s_nu !! viscous rate 1/tau
-    s_q = 8.0_wp*(2.0_wp - s_nu)/(8.0_wp - s_nu)
-  end function e3_heat_flux_rate
 
   !> Set the collision from the nine rates in moment order (rho, e, eps, jx, qx, jy, qy, pxx,
   !! pxy) and the model switch; with bgk (E4) only the viscous rate s(7) = 1/tau is used.

@@ -18,7 +18,7 @@ module dkt_output
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
-  use dkt_registry, only: itoa, counted
+  use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
   implicit none

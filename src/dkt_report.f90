@@ -10,7 +10,7 @@ module dkt_report
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
-  use dkt_registry, only: itoa, counted
+  use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
   implicit none

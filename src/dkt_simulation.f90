@@ -27,7 +27,7 @@ module dkt_simulation
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
   use dkt_io, only: io_close
-  use dkt_registry, only: itoa, fmt_real
+  use dkt_text, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
   use dkt_output, only: output_fields, output_particles, output_close, output_final, &
                         output_scheduled, output_mark_finished

@@ -8,17 +8,13 @@
 !> weight (bounce-back pairs, periodic images, halo rows, the window's row shift) move stored
 !> values unchanged in either form.
 module dkt_store
-  use dkt_kinds, only: wp, sp
+  use dkt_kinds, only: wp, sp, PRECISION_NAMES
   use dkt_lattice, only: w
   implicit none
   private
   public :: lattice_t, lattice_allocate, lattice_free, lattice_get, lattice_set, &
             lattice_get_node, lattice_set_node, lattice_swap, lattice_allocated, &
             lattice_bytes, lattice_precision, lattice_precision_name, PRECISION_NAMES
-
-  !> the values of lbm.precision: 8 bytes; 4 bytes holding f_i - w_i; 4 bytes holding f_i (the
-  !! naive form, only there to measure what the shift buys)
-  character(len=*), parameter :: PRECISION_NAMES = 'double single single_unshifted'
 
   type :: lattice_t
     logical :: single = .false.  !! populations stored in 4 bytes (s), otherwise in 8 (d)

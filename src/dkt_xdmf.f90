@@ -12,7 +12,7 @@
 module dkt_xdmf
   use dkt_kinds, only: wp
   use dkt_filesystem, only: rename_file
-  use dkt_registry, only: itoa
+  use dkt_text, only: itoa
   use dkt_errors, only: fatal_local
   implicit none
   private

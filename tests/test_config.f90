@@ -9,8 +9,9 @@ program test_config
   use dkt_config, only: config_t, lattice_params_t, cli_t, config_load, config_validate, &
                         config_check_text, &
                         derive_lattice, config_to_namelist, parse_arguments, read_text_file, &
-                        config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES
-  use dkt_registry, only: printable
+                        config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES, &
+                        particle_cfg_t
+  use dkt_text, only: printable
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
@@ -30,6 +31,7 @@ program test_config
   call test_round_trip()
   call test_cross_checks_accept()
   call test_derive_lattice()
+  call test_load_returns_lattice()
   call test_command_line()
   call test_errors()
   call test_particle_keys()
@@ -388,6 +390,36 @@ contains
     call check('derive_lattice refuses an invalid config', len(err) > 0)
   end subroutine test_derive_lattice
 
+  !> config_load converts to lattice units once and returns that result: for a scene whose
+  !! &pair, &window, cells_per_diameter and mach are expanded first, the parameters it returns
+  !! equal, bit for bit, those derive_lattice derives from the loaded configuration, with the
+  !! same warnings. Bugs caught: parameters returned from the configuration before expansion
+  !! (dx, tau, height, particles), from a copy the checks changed, or left unset.
+  subroutine test_load_returns_lattice()
+    type(config_t) :: cfg
+    type(lattice_params_t) :: lp, again
+    character(len=:), allocatable :: err, warnings, warnings_again
+    call config_load(cfg, '&pair gamma = 2, d1 = 0.2, y_upper = 15.0 / &lbm cells_per_diameter'// &
+                     ' = 8, mach = 0.05 / &window enabled = T / &run steps = 10 /', FILE, none, &
+                     err, warnings, lp)
+    call check('expanded scene loads', len(err) == 0)
+    call derive_lattice(cfg, again, err, warnings_again)
+    call check('the loaded configuration is valid as it stands', len(err) == 0)
+    call check('load returns the lattice of the expanded scene: dx, dt, tau, rates', &
+               same(lp%dx, again%dx) .and. same(lp%dt, again%dt) .and. &
+               same(lp%tau, again%tau) .and. all(same(lp%s, again%s)))
+    call check('.. cells, steps, velocity scale', lp%nx == again%nx .and. &
+               lp%ny == again%ny .and. lp%steps == again%steps .and. &
+               same(lp%u_scale_lb, again%u_scale_lb) .and. lp%steps == 10)
+    call check('.. the two particles in lattice units', size(lp%particles%y) == 2 .and. &
+               all(same(lp%particles%y, again%particles%y)) .and. &
+               all(same(lp%particles%r, again%particles%r)))
+    call check('.. tau is the one lbm.mach set, dx the one cells_per_diameter set', &
+               same(lp%tau, cfg%lbm%tau) .and. same(lp%dx, cfg%lbm%dx) .and. &
+               .not. same(cfg%lbm%tau, 0.65_wp))
+    call check('.. and the same warnings', warnings == warnings_again)
+  end subroutine test_load_returns_lattice
+
   subroutine test_command_line()
     type(cli_t) :: cli
     character(len=:), allocatable :: err
@@ -592,6 +624,7 @@ contains
   subroutine test_particle_sizing()
     type(config_t) :: cfg
     type(particles_cfg_t) :: p
+    type(particle_cfg_t) :: d !! its initialisers: the defaults of one particle
     character(len=*), parameter :: THREE = '&particles count = 3, x = 0.5, 1.0, 1.5, '// &
                                    'y = 2, 2, 2 /'
     call load_ok('count = 3', THREE, cfg)
@@ -633,6 +666,9 @@ contains
                size(p%x) == 3 .and. all(same(p%x, [0.5_wp, 1.5_wp, 1.0_wp])) .and. &
                all(p%motion == [character(len=16) :: 'free', 'fixed', 'free']) .and. &
                all(same(p%diameter, 0.2_wp)) .and. all(same(p%density, 1.01_wp)))
+    call check('.. the defaults of one particle, particle_cfg_t', same(p%y(3), d%y) .and. &
+               same(p%u(3), d%u) .and. same(p%v(3), d%v) .and. same(p%omega(3), d%omega) .and. &
+               same(p%diameter(3), d%diameter) .and. p%motion(3) == d%motion)
     call particles_allocate(p, 1)
     call check('particles_allocate shrinks to the first elements', &
                size(p%x) == 1 .and. same(p%x(1), 0.5_wp) .and. size(p%motion) == 1)

@@ -1,9 +1,9 @@
 """input/README.md documents every input key exactly as `dktlbm --print-defaults` reports it.
 
-`--print-defaults` prints the key registry of src/dkt_config.f90 (the one source of defaults,
-units and ranges). For every key, the README table row and the printed line must agree on the
-type, the unit, the default and the allowed values, and neither side may have a key the other
-lacks. Numbers are compared by value (10 = 10.0 = 1.0e1), text after collapsing blanks.
+`--print-defaults` prints the key registry that src/dkt_config_types.f90 builds (the one source
+of defaults, units and ranges). For every key, the README table row and the printed line must
+agree on the type, the unit, the default and the allowed values, and neither side may have a key
+the other lacks. Numbers are compared by value (10 = 10.0 = 1.0e1), text after collapsing blanks.
 The meaning column may say more than the one-line meaning and is not compared.
 
 Environment: DKTLBM_EXE (default <repo>/build/dktlbm), DKTLBM_ROOT (default the repo).

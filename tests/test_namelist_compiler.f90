@@ -22,7 +22,7 @@ program test_namelist_compiler
   use, intrinsic :: iso_fortran_env, only: int64
   use dkt_kinds, only: wp
   use dkt_config, only: config_t, particles_cfg_t, config_load, read_text_file, particles_allocate
-  use dkt_registry, only: lower_case
+  use dkt_text, only: lower_case
   use dkt_check, only: check, finish
   implicit none
 

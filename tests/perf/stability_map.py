@@ -21,7 +21,8 @@ pi N r / u_lb steps, r the density ratio, capped at --max-steps) and ends in one
 
 Writes <out>/stability_map.csv (one row per run, with the measured Re_max = max |U| D / nu) and
 plots tau against Re_p, one marker per outcome, into --png. The table REYNOLDS_MAX of
-src/dkt_config.f90 (--check warns outside it) is the rule `safe_region` prints from the CSV.
+src/dkt_config_checks_run.f90 (--check warns outside it) is the rule `safe_region` prints from
+the CSV.
 
     tests/perf/stability_map.py                        # the committed grid (docs/stability.md)
     tests/perf/stability_map.py --taus 0.6 --reynolds 10 100 --out /tmp/map
@@ -146,7 +147,8 @@ def run_point(tau: float, re_p: float, args, out: Path) -> dict[str, object]:
 
 def safe_region(rows: list[dict[str, str]]) -> dict[float, float]:
     """Re_max(tau): per tau, the largest Re_p below which every run of the grid was stable
-    (0 when the smallest already was not). The rule --check applies (src/dkt_config.f90)."""
+    (0 when the smallest already was not). The rule --check applies
+    (src/dkt_config_checks_run.f90)."""
     region = {}
     for tau in sorted({float(r["tau"]) for r in rows}):
         best = 0.0
