@@ -257,12 +257,16 @@ contains
   end subroutine output_check_existing
 
   !> Stop the run on an error all ranks detected together after the output was opened: the
-  !! output is completed up to the current step and closed with stop_reason 'error: <msg>',
-  !! then every rank exits with EXIT_RUNTIME and rank 0 prints `msg`.
+  !! output is completed up to the current step (but for its fields) and closed with
+  !! stop_reason 'error: <msg>', then every rank exits with EXIT_RUNTIME and rank 0 prints
+  !! `msg`.
   subroutine output_fail(sim, msg)
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: msg
     sim%stop_reason = 'error: '//msg
+    ! the errors here are failed writes, most often a full disk: the fields of this step (the
+    ! largest record) are left out so that the series and the stop_reason find the space
+    sim%fields_step = sim%step
     call output_close(sim)
     call fatal_all(msg, EXIT_RUNTIME)
   end subroutine output_fail
