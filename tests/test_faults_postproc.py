@@ -16,7 +16,7 @@ The runs are the pair of case1 (gamma 1.3, 10 spacings per diameter) on 2 ranks:
 - killed while extended: a finished run resumed from its last checkpoint with a later end and
   SIGKILLed mid-way. The run file must no longer carry the finished run's `pattern` (the
   program removes the report of the finished run when it continues it), and the reader must not
-  report a pattern 'as written' for a run that did not finish;
+  report a pattern 'as written' for a file whose stop_reason is still 'running';
 - NaN: a finished run file whose gap turns NaN at one sample, with a kiss after it: the reader
   warns on stderr naming the file and the time of the first NaN, and classifies the samples
   before it only (pattern 'never', where the kiss after the NaN would make it 'once').

@@ -840,10 +840,12 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
         else:
             lim = Thresholds(enter, release, run.dx, d1, rule="as written in /diagnostics")
         pattern = text_attr(a.get("pattern", ""))
-        if pattern not in PATTERNS or not run.complete or not np.all(np.isfinite(dr)):
-            # an unfinished file: classify what there is (a pattern left by the finished run
-            # that a killed restart extended describes a run that is not this one), up to the
-            # first gap that is not a number
+        if (pattern not in PATTERNS or run.stop_reason == "running"
+                or not np.all(np.isfinite(dr))):
+            # an unfinished file: classify what there is, up to the first gap that is not a
+            # number. The program writes the pattern when it closes the file, whatever stopped
+            # it; in a file still 'running' it can only be the one of the finished run that a
+            # killed restart extended (files of earlier versions), which is not this run's
             pairs, is_open = _classify(run, t, dr, lim.enter, lim.release)
             pattern = pattern_name(len(pairs))
             episodes = _episodes(t, dr, pairs, is_open)
