@@ -28,12 +28,13 @@
 module dkt_checkpoint
   use iso_fortran_env, only: int64
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
-                     MPI_INTEGER, MPI_MIN, MPI_CHARACTER
+                     MPI_INTEGER, MPI_MIN, MPI_CHARACTER, MPI_Barrier
   use hdf5, only: hsize_t
   use ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_is_negative
   use dkt_kinds, only: wp, sp
   use dkt_store, only: lattice_t, lattice_precision_name
-  use dkt_filesystem, only: rename_file
+  use iso_c_binding, only: c_long
+  use dkt_filesystem, only: rename_file, reserve_space, remove_file
   use dkt_text, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
   use dkt_kinds, only: MAX_PARTICLES
@@ -94,13 +95,27 @@ contains
     integer, allocatable :: codes(:)
     logical :: bad
     real(wp), allocatable :: buf(:, :, :)
-    character(len=:), allocatable :: tmp
+    character(len=:), allocatable :: tmp, reason
 
     call MPI_Comm_rank(comm, rank)
     tmp = path//'.tmp'
+    ! The space first: parallel HDF5 does not come back from a write that failed on some ranks
+    ! only (their closes wait on each other for ever), so a full disk is found before any
+    ! HDF5 call, by reserving the file's size. The reservation is released when HDF5 creates
+    ! the file, with the space it then fills.
+    reason = ''
+    if (rank == 0) call reserve_space(tmp, checkpoint_bytes(chk, len(given)), reason)
+    call agree(reason, comm)
+    if (len(reason) > 0) then
+      err = 'cannot write checkpoint file '''//path//''': '//reason//' (it needs '// &
+            itoa(int(checkpoint_bytes(chk, len(given))/1024_c_long))//' KiB in output.dir)'
+      return
+    end if
     call io_file_open(pf, tmp, comm, .true., err)
     if (len(err) > 0) then
-      err = err//'; is output.dir still there and writable, and is the disk not full?'
+      call discard(tmp, comm)
+      err = 'cannot write checkpoint file '''//path//''': '//err// &
+            '; is output.dir still there and writable, and is the disk not full?'
       return
     end if
     allocate (buf(nx, nyl, 0:8))
@@ -145,7 +160,9 @@ contains
                                   storage_code(f)), rank == 0)
     call io_file_close(pf, err)
     if (len(err) > 0) then
-      err = 'writing checkpoint file '''//tmp//''' failed ('//err//'); is the disk full?'
+      ! the partial file would fill the disk the run file still needs to close
+      call discard(tmp, comm)
+      err = 'writing checkpoint file '''//path//''' failed ('//err//'); is the disk full?'
       return
     end if
     ! the complete file takes the final name; the previous checkpoint is left as it was
@@ -154,6 +171,27 @@ contains
     call MPI_Bcast(bad, 1, MPI_LOGICAL, 0, comm)
     if (bad) err = 'cannot rename '''//tmp//''' to '''//path//''''
   end subroutine checkpoint_write
+
+  !> The size of the checkpoint file of `chk` (bytes), from above: its datasets and 64 KiB
+  !! for HDF5's own records.
+  function checkpoint_bytes(chk, ngiven) result(bytes)
+    type(checkpoint_t), intent(in) :: chk
+    integer, intent(in) :: ngiven !! characters of the input
+    integer(c_long) :: bytes
+    bytes = 8_c_long*chk%nx*chk%ny*9 + 16_c_long*chk%ny + 8_c_long*size(chk%particles) + &
+            24_c_long*size(chk%t_start) + 4_c_long*(ngiven + NINT + 1) + 65536_c_long
+  end function checkpoint_bytes
+
+  !> Remove the unfinished file `tmp` (rank 0, once every rank is past it).
+  subroutine discard(tmp, comm)
+    character(len=*), intent(in) :: tmp
+    type(MPI_Comm), intent(in) :: comm
+    integer :: rank
+    call MPI_Barrier(comm)
+    call MPI_Comm_rank(comm, rank)
+    if (rank == 0) call remove_file(tmp)
+    call MPI_Barrier(comm)
+  end subroutine discard
 
   !> Read the checkpoint at `path`: its state into `chk` and, when its lattice is nx x ny, it
   !! holds np particles and its populations are stored as f stores them, the rows y0+1..y0+nyl

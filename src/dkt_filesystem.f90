@@ -1,13 +1,16 @@
 !> The little the code needs from the file system that Fortran does not offer: creating a
 !> directory path (POSIX mkdir through C interoperability), testing for existence, renaming a
-!> file in one step (POSIX rename: a reader sees the old file or the new one, never a part) and
-!> deleting one.
+!> file in one step (POSIX rename: a reader sees the old file or the new one, never a part),
+!> deleting one, and reserving the space a file will need (POSIX posix_fallocate).
 module dkt_filesystem
-  use iso_c_binding, only: c_char, c_int, c_null_char
+  use iso_c_binding, only: c_char, c_int, c_null_char, c_long, c_ptr, c_f_pointer, &
+                           c_associated
   implicit none
   private
   public :: make_directories, path_exists, rename_file, remove_file, write_marker
-  public :: directory_problem
+  public :: directory_problem, reserve_space
+
+  integer(c_int), parameter :: O_WRONLY = 1 !! open(2) flag (Linux, BSD, macOS)
 
   interface
     integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
@@ -24,6 +27,25 @@ module dkt_filesystem
       character(kind=c_char), intent(in) :: path(*)
       integer(c_int), value :: mode
     end function c_access
+    integer(c_int) function c_open(path, flags) bind(C, name='open')
+      import :: c_char, c_int
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: flags
+    end function c_open
+    integer(c_int) function c_close(fd) bind(C, name='close')
+      import :: c_int
+      integer(c_int), value :: fd
+    end function c_close
+    !> returns the error number (0 on success), not -1 and errno
+    integer(c_int) function c_posix_fallocate(fd, offset, length) bind(C, name='posix_fallocate')
+      import :: c_int, c_long
+      integer(c_int), value :: fd
+      integer(c_long), value :: offset, length
+    end function c_posix_fallocate
+    type(c_ptr) function c_strerror(errnum) bind(C, name='strerror')
+      import :: c_int, c_ptr
+      integer(c_int), value :: errnum
+    end function c_strerror
   end interface
 
 contains
@@ -130,5 +152,58 @@ contains
     ok = rename_file(path//'.tmp', path)
     if (.not. ok) call remove_file(path//'.tmp')
   end function write_marker
+
+  !> Create the file `path` holding `bytes` bytes of allocated space, so that a write of that
+  !! size cannot then fail for want of space. err is '' on success, else the system's reason
+  !! ("No space left on device"); the file is removed then. A file system that cannot reserve
+  !! space (EINVAL, EOPNOTSUPP) is not an error: the write itself will tell.
+  subroutine reserve_space(path, bytes, err)
+    character(len=*), intent(in) :: path
+    integer(c_long), intent(in) :: bytes
+    character(len=:), allocatable, intent(out) :: err
+    integer(c_int), parameter :: EINVAL = 22, EOPNOTSUPP = 95
+    integer :: u, ios
+    integer(c_int) :: fd, rc
+    character(len=256) :: msg
+    err = ''
+    open (newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      err = trim(msg)
+      return
+    end if
+    close (u)
+    fd = c_open(path//c_null_char, O_WRONLY)
+    if (fd < 0) then
+      err = 'cannot open it'
+    else
+      rc = c_posix_fallocate(fd, 0_c_long, bytes)
+      if (rc /= 0 .and. rc /= EINVAL .and. rc /= EOPNOTSUPP) err = system_reason(rc)
+      if (c_close(fd) /= 0 .and. len(err) == 0) err = 'cannot close it'
+    end if
+    if (len(err) > 0) call remove_file(path)
+  end subroutine reserve_space
+
+  !> The system's text for error number `errnum` (strerror).
+  function system_reason(errnum) result(text)
+    integer(c_int), intent(in) :: errnum
+    character(len=:), allocatable :: text
+    character(kind=c_char), pointer :: c(:)
+    type(c_ptr) :: p
+    integer :: n
+    character(len=12) :: digits
+    write (digits, '(i0)') errnum
+    text = 'error number '//trim(digits)
+    p = c_strerror(errnum)
+    if (.not. c_associated(p)) return
+    call c_f_pointer(p, c, [256])
+    n = 0
+    do while (n < 256)
+      if (c(n + 1) == c_null_char) exit
+      n = n + 1
+    end do
+    deallocate (text)
+    allocate (character(len=n) :: text)
+    text = transfer(c(1:n), text)
+  end function system_reason
 
 end module dkt_filesystem

@@ -125,6 +125,11 @@ module dkt_io
   !> the longest namelist text (characters) stored as the attribute /run namelist; a longer one
   !! (a scene of some 500 particles and more, up to megabytes) is the dataset /run/namelist
   integer, parameter :: NAMELIST_ATTR_MAX = 32768
+  !> the attributes of /diagnostics that say a run finished (dkt_output output_pair_report):
+  !! a continued run removes them until it finishes in its turn
+  character(len=12), parameter :: FINAL_REPORT(4) = &
+                                  [character(len=12) :: 'pattern', 'episodes', 'open_episode', &
+                                                         'ended_early']
 
   interface
     !> H5Tset_size of the C library, which takes H5T_VARIABLE = (size_t) -1. hid_t is the C
@@ -307,10 +312,27 @@ contains
     call h5lexists_f(io%file_id, 'fields', exists, hdferr)
     call check(hdferr, 'h5lexists_f(fields)', io%path)
     if (exists) call cut_fields()
+    ! the report of a finished run is written again when the continued run finishes; until
+    ! then it would describe a run that is not over (a run killed while extended)
+    if (there(findloc(groups, 'diagnostics', 1))) then
+      do k = 1, size(FINAL_REPORT)
+        call drop_attribute('diagnostics', trim(FINAL_REPORT(k)))
+      end do
+    end if
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
     if (io%rank == 0) call xdmf_write(io%xdmf)
   contains
+    !> Remove the attribute `aname` of the group at `path`, if it is there.
+    subroutine drop_attribute(path, aname)
+      character(len=*), intent(in) :: path, aname
+      integer(hid_t) :: obj
+      obj = open_object(io, path)
+      call delete_attribute(io, obj, path, aname)
+      call h5oclose_f(obj, hdferr)
+      call check(hdferr, 'h5oclose_f('//path//')', io%path)
+    end subroutine drop_attribute
+
     !> err for a file that lacks samples the checkpoint counts: `what` it has instead.
     subroutine short(what)
       character(len=*), intent(in) :: what
@@ -1097,22 +1119,31 @@ contains
     character(len=*), intent(in), optional :: s
     integer(hid_t) :: obj
     integer :: hdferr
-    logical :: exists
 
     if (len_trim(name) == 0) call fatal_local('io_write_attribute: empty attribute name for '''// &
                                               trim(path)//'''')
     call flush_pending(io)
     obj = open_object(io, path)
-    call h5aexists_f(obj, trim(name), exists, hdferr)
-    call check(hdferr, 'h5aexists_f('//trim(path)//' '//trim(name)//')', io%path)
-    if (exists) then
-      call h5adelete_f(obj, trim(name), hdferr)
-      call check(hdferr, 'h5adelete_f('//trim(path)//' '//trim(name)//')', io%path)
-    end if
+    call delete_attribute(io, obj, trim(path), trim(name))
     call put_attr(io, obj, trim(name), r, i, s)
     call h5oclose_f(obj, hdferr)
     call check(hdferr, 'h5oclose_f('//trim(path)//')', io%path)
   end subroutine set_attribute
+
+  !> Remove the attribute `name` of the open object `obj` (at `path`), if it has one.
+  subroutine delete_attribute(io, obj, path, name)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: obj
+    character(len=*), intent(in) :: path, name
+    integer :: hdferr
+    logical :: exists
+    call h5aexists_f(obj, name, exists, hdferr)
+    call check(hdferr, 'h5aexists_f('//path//' '//name//')', io%path)
+    if (exists) then
+      call h5adelete_f(obj, name, hdferr)
+      call check(hdferr, 'h5adelete_f('//path//' '//name//')', io%path)
+    end if
+  end subroutine delete_attribute
 
   subroutine require_open(io, caller)
     type(io_t), intent(in) :: io

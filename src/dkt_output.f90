@@ -257,12 +257,16 @@ contains
   end subroutine output_check_existing
 
   !> Stop the run on an error all ranks detected together after the output was opened: the
-  !! output is completed up to the current step and closed with stop_reason 'error: <msg>',
-  !! then every rank exits with EXIT_RUNTIME and rank 0 prints `msg`.
+  !! output is completed up to the current step (but for its fields) and closed with
+  !! stop_reason 'error: <msg>', then every rank exits with EXIT_RUNTIME and rank 0 prints
+  !! `msg`.
   subroutine output_fail(sim, msg)
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: msg
     sim%stop_reason = 'error: '//msg
+    ! the errors here are failed writes, most often a full disk: the fields of this step (the
+    ! largest record) are left out so that the series and the stop_reason find the space
+    sim%fields_step = sim%step
     call output_close(sim)
     call fatal_all(msg, EXIT_RUNTIME)
   end subroutine output_fail
@@ -359,7 +363,8 @@ contains
     real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
     character(len=7) :: names(6)
     character(len=1024) :: row
-    integer :: k
+    character(len=256) :: msg
+    integer :: k, ios
     t = n*sim%lp%dt
     rho_f = sim%cfg%fluid%density
     mu = sim%cfg%fluid%viscosity
@@ -378,9 +383,13 @@ contains
     if (sim%csv_open) then
       write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
         re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
-      write (sim%csv_unit, '(a)') trim(row)
+      write (sim%csv_unit, '(a)', iostat=ios, iomsg=msg) trim(row)
       ! kept on disk row by row: a rank that aborts the job must not take the series with it
-      flush (sim%csv_unit)
+      if (ios == 0) flush (sim%csv_unit, iostat=ios, iomsg=msg)
+      ! rank 0 alone writes it: it ends the job (a full disk)
+      if (ios /= 0) call fatal_local('cannot write the CSV file '''// &
+                                     config_output_dir(sim%cfg)//'/'//sim%cfg%name// &
+                                     '_diagnostics.csv'': '//trim(msg)//'; is the disk full?')
     end if
   end subroutine write_pair
 

@@ -34,10 +34,12 @@ from __future__ import annotations
 import argparse
 import functools
 import math
+import os
 import re
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -322,6 +324,11 @@ def open_h5(path: str | Path) -> Iterator[Any]:
         raise RunFileError(path, f"cannot read: {exc}") from None
     if not is_h5:
         raise RunFileError(path, "not an HDF5 file")
+    if held_open(p):
+        # HDF5 gives a reader no consistent view of a file another process is writing
+        raise RunFileError(path, "is being written by a live run (a process on this machine "
+                           "has it open); read it once the run has stopped (SIGTERM stops it "
+                           "with a checkpoint)")
     try:
         h5 = h5py.File(p, "r")
     except OSError as exc:
@@ -634,6 +641,21 @@ def classify(dr: np.ndarray, enter: float, release: float) -> tuple[list[tuple[i
     return episodes, is_open
 
 
+def _classify(run: Run, t: np.ndarray, dr: np.ndarray, enter: float,
+              release: float) -> tuple[list[tuple[int, int]], bool]:
+    """classify(dr) up to the first gap that is not a number (the run's positions went NaN:
+    what follows says nothing of the pair), with a warning on stderr naming the file and the
+    time; an open episode then ends at the last finite sample."""
+    bad = np.flatnonzero(~np.isfinite(np.asarray(dr, dtype=float)))
+    if bad.size == 0:
+        return classify(dr, enter, release)
+    k = int(bad[0])
+    print(f"warning: {run.path}: the gap D_r is not a number from t = {float(t[k]):.6g} s on "
+          f"(sample {k}: NaN positions); the pattern is classified from the {k} samples "
+          "before it", file=sys.stderr)
+    return classify(dr[:k], enter, release)
+
+
 def pattern_name(n_episodes: int) -> str:
     return "repeated" if n_episodes >= 2 else "once" if n_episodes == 1 else "never"
 
@@ -781,7 +803,7 @@ def _pair_from_particles(run: Run, limits: dict[str, float] | None) -> Pair:
     gamma = float(max(d[0], d[1]) / min(d[0], d[1]))
     dh = float(abs(dy[0]) / d1)
     lim = _limits(run, d1, limits)
-    pairs, is_open = classify(dr, lim.enter, lim.release)
+    pairs, is_open = _classify(run, run.t, dr, lim.enter, lim.release)
     re, cd = reynolds_and_drag(run)
     return Pair(run, run.t, dx, dy, dr, re[:, :2], cd[:, :2], d1, gamma, dh, lim,
                 pattern_name(len(pairs)), _episodes(run.t, dr, pairs, is_open))
@@ -804,7 +826,7 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
     cd = diag["cd"] if "cd" in diag else (cd_p[:, :2] if same_t else np.full((t.size, 2), np.nan))
     if limits and any(v is not None for v in limits.values()):
         lim = _limits(run, d1, limits, a)
-        pairs, is_open = classify(dr, lim.enter, lim.release)
+        pairs, is_open = _classify(run, t, dr, lim.enter, lim.release)
         episodes = _episodes(t, dr, pairs, is_open)
         pattern = pattern_name(len(pairs))
         source = "computed from /diagnostics/dr with the given thresholds"
@@ -818,12 +840,17 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
         else:
             lim = Thresholds(enter, release, run.dx, d1, rule="as written in /diagnostics")
         pattern = text_attr(a.get("pattern", ""))
-        if pattern not in PATTERNS:
-            # an unfinished file: classify what there is
-            pairs, is_open = classify(dr, lim.enter, lim.release)
+        if (pattern not in PATTERNS or run.stop_reason == "running"
+                or not np.all(np.isfinite(dr))):
+            # an unfinished file: classify what there is, up to the first gap that is not a
+            # number. The program writes the pattern when it closes the file, whatever stopped
+            # it; in a file still 'running' it can only be the one of the finished run that a
+            # killed restart extended (files of earlier versions), which is not this run's
+            pairs, is_open = _classify(run, t, dr, lim.enter, lim.release)
             pattern = pattern_name(len(pairs))
             episodes = _episodes(t, dr, pairs, is_open)
-            source = "computed from /diagnostics/dr (no pattern attribute)"
+            source = ("computed from /diagnostics/dr (no pattern attribute, or the run is "
+                      "not finished)")
         else:
             starts = diag.get("episodes_start", np.zeros(0))
             ends = diag.get("episodes_end", np.zeros(0))
@@ -842,19 +869,67 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
 # ---------------------------------------------------------------- run status (sweeps)
 
 
+#: a run file, log or CSV written to within this many seconds counts as a live run's
+#: (a run on another machine, which /proc does not show); the series are flushed at least
+#: this often while a run writes (a checkpoint, a field or a full sample buffer)
+RUNNING_QUIET = 120.0
+PAUSED = ("signal", "wall_limit")  # stop reasons after which a checkpoint resumes the run
+
+
+def held_open(path: str | Path) -> bool:
+    """Whether a process on this machine has `path` open (Linux /proc; False elsewhere)."""
+    target = str(Path(path).resolve())
+    for fd_dir in Path("/proc").glob("[0-9]*/fd"):
+        if fd_dir.parent.name == str(os.getpid()):  # this process's own handles are its own
+            continue
+        try:
+            for fd in fd_dir.iterdir():
+                if str(fd.readlink()) == target:
+                    return True
+        except OSError:  # another user's process, or one that just ended
+            continue
+    return False
+
+
+def _recently_written(p: Path) -> bool:
+    """Whether the run file `p`, its log or its CSV changed in the last RUNNING_QUIET s."""
+    now = time.time()
+    for f in (p, p.with_suffix(".log"), p.with_name(p.stem + "_diagnostics.csv")):
+        try:
+            if now - f.stat().st_mtime < RUNNING_QUIET:
+                return True
+        except OSError:
+            continue
+    return False
+
+
 def run_status(path: str | Path) -> str:
-    """'finished' when `path` holds a finished run: /run stop_reason 'finished' or
-    'window_escape' (older files: /diagnostics has its `pattern` attribute, or /particles
-    reaches the run's last step); 'missing' when there is no file; 'failed' otherwise
-    (stopped early, unreadable, or running)."""
+    """The state of the run file `path`:
+
+    - 'missing': no file;
+    - 'finished': /run stop_reason 'finished' or 'window_escape' (older files without it:
+      /diagnostics has its `pattern` attribute, or /particles reaches the run's last step);
+    - 'running': a live run is writing it: a process on this machine has it open, or its
+      stop_reason is 'running' and the file, its log or its CSV changed within the last
+      RUNNING_QUIET s (a run on another machine). Never start or overwrite it;
+    - 'paused': stop_reason 'signal' or 'wall_limit': stopped cleanly with a checkpoint
+      (<name>.checkpoint names it), to be resumed with --restart;
+    - 'failed': anything else: stopped by a guard, an error or a particle stop, killed
+      (stop_reason 'running' and quiet), or unreadable."""
     p = Path(path)
     if not p.is_file():
         return "missing"
+    if held_open(p):  # read nothing a live run is writing
+        return "running"
     try:
         with open_h5(p) as h5:
             reason = stop_reason(h5)
             if reason:
-                return "finished" if reason in ("finished", "window_escape") else "failed"
+                if reason in ("finished", "window_escape"):
+                    return "finished"
+                if reason in PAUSED:
+                    return "paused"
+                return "running" if reason == "running" and _recently_written(p) else "failed"
             if "diagnostics" in h5:
                 return "finished" if "pattern" in h5["diagnostics"].attrs else "failed"
             if "particles" not in h5 or "run" not in h5:

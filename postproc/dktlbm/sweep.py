@@ -73,6 +73,8 @@ STYLE = {
     "never": ("^", "tab:blue"),
     "missing": ("x", "tab:gray"),
     "stopped": ("P", "tab:purple"),
+    "paused": ("P", "tab:purple"),
+    "running": ("*", "tab:green"),
     "failed": ("X", "black"),
 }
 
@@ -294,6 +296,19 @@ class Progress:
                 f"{clock_text(self.clock() - self.start)}, ETA {eta}")
 
 
+def checkpoint_of(h5: Path) -> Path | None:
+    """The checkpoint that resumes the run of `h5`: the one its marker <name>.checkpoint
+    names, when that file is there; else None."""
+    marker = h5.with_suffix(".checkpoint")
+    try:
+        chk = Path(marker.read_text().strip())
+    except OSError:
+        return None
+    if not chk.is_absolute():
+        chk = h5.parent / chk
+    return chk if chk.is_file() else None
+
+
 def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool,
              progress: Progress | None = None) -> int:
     """Run the plan, `jobs` runs at a time on `ranks` ranks each; the output of each goes to
@@ -310,12 +325,20 @@ def run_plan(plan: list[PlannedRun], jobs: int, ranks: int, force: bool,
 
     def one(r: PlannedRun) -> bool:
         status = run_status(r.h5)
+        if status == "running":  # even with --force: its output is not this sweep's to take
+            say(f"skip   {r.id}: {r.h5} is being written by a live run")
+            return True
         if status == "finished" and not force:
             say(f"skip   {r.id}: {r.h5} is finished (--force runs it again)")
             return True
         r.dir.mkdir(parents=True, exist_ok=True)
         args = r.args
-        if r.h5.exists():
+        resume = checkpoint_of(r.h5) if status == "paused" and not force else None
+        if resume is not None:
+            args += ["--restart", str(resume)]
+            with lock:
+                print(f"resume {r.id} from {resume}", flush=True)
+        elif r.h5.exists():
             args += ["--set", "output.overwrite=.true."]
         log = r.dir / "run.log"
         with lock:
@@ -436,7 +459,8 @@ class Verdict:
     a pattern at all: `status` says what."""
 
     status: str  # 'finished', 'window_escape', the file's other stop_reason, 'missing',
-    # 'failed', 'short' (verdict with `until`: the samples end before it)
+    # 'running' (a live run writes it), 'failed', 'short' (verdict with `until`: the samples
+    # end before it)
     pattern: str = ""
     half: str = ""
     episodes: int = 0
@@ -510,6 +534,8 @@ def verdict(h5: Path, until: float | None = None) -> Verdict:
     status = run_status(h5)
     if status == "missing":
         return Verdict("missing", why="no run file")
+    if status == "running":  # nothing is read from a file a live run is writing
+        return Verdict("running", why="a live run is writing it")
     try:
         with open_h5(h5) as f:
             reason = stop_reason(f) or status
@@ -902,16 +928,17 @@ def bisect(cfg: BisectSettings, jobs: int, launch) -> tuple[Bisector, str]:
 
 def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
     """One regime.csv row per planned run: its pattern, number of kissing episodes and the
-    start of the first one (s); pattern 'missing' without a run file, 'stopped' when the run is
-    not finished but has a checkpoint to resume from (<name>.checkpoint: stopped at a time
-    limit, or still running) or, when it had a kissing episode by then, the pattern so far
+    start of the first one (s); pattern 'missing' without a run file, 'running' while a live
+    run writes it, 'paused' when it stopped cleanly to be resumed (stop_reason 'signal' or
+    'wall_limit'), 'stopped' when it was killed but has a checkpoint to resume from
+    (<name>.checkpoint), or, after a clean stop with a kissing episode, the pattern so far
     (status the stop reason; settled only when 'repeated': episodes only add), 'failed' when
     the file is not a finished run otherwise."""
     rows = []
     for r in plan:
         status = run_status(r.h5)
         if status == "failed" and r.h5.with_suffix(".checkpoint").is_file():
-            status = "stopped"
+            status = "stopped"  # killed, but resumable from its last checkpoint
         v = verdict(r.h5)  # pattern and settling columns both come from this one verdict
         gamma, dh = r.gamma, r.dh
         pattern, episodes, first = status, "", ""
@@ -923,7 +950,7 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
                 dh = dh if dh is not None else v.dh
             else:
                 pattern = "failed"
-        elif status == "stopped" and v.partial:  # stopped after a kiss: the pattern so far
+        elif status in ("stopped", "paused") and v.partial:  # after a kiss: the pattern so far
             pattern, episodes = v.pattern, str(v.episodes)
             first = f"{v.first_kiss:.6g}" if v.first_kiss is not None else ""
         rows.append({

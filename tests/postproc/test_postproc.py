@@ -167,9 +167,10 @@ def test_scales_come_from_diagnostics_else_the_namelist(tmp_path: Path) -> None:
 def test_run_attributes_are_read_and_an_early_stop_is_reported(tmp_path: Path) -> None:
     """Files since the program stores its scales and thresholds in /run: the reader takes them
     from there (values here differ from the namelist and the defaults, so a reader that
-    recomputes them fails), and reports a run that stopped early: run_status 'failed' even
-    though its series look complete, a warning with the reason, and pattern.py's
-    'incomplete:' line (JSON stop_reason, complete); 'finished' is reported as finished."""
+    recomputes them fails), and reports a run that stopped early: run_status 'paused' (a
+    signal) or 'failed' (killed: 'running' but quiet) even though its series look complete, a
+    warning with the reason, and pattern.py's 'incomplete:' line (JSON stop_reason,
+    complete); 'finished' is reported as finished."""
     f = tmp_path / "stored.h5"
     syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1), t_ref=0.2, fields=False)
 
@@ -191,10 +192,13 @@ def test_run_attributes_are_read_and_an_early_stop_is_reported(tmp_path: Path) -
     assert r.complete and r.stop_note() is None
     assert read.run_status(f) == "finished"
 
-    for reason, says in (("signal", "stopped: signal"),
-                         ("running", "killed or is still running")):
+    for reason, says, status in (("signal", "stopped: signal", "paused"),
+                                 ("running", "killed or is still running", "failed")):
         store(reason)
-        assert read.run_status(f) == "failed"
+        # written long ago: a 'running' file nobody writes any more is a killed run
+        old = f.stat().st_mtime - 2 * read.RUNNING_QUIET
+        os.utime(f, (old, old))
+        assert read.run_status(f) == status
         proc = script("pattern", f)
         assert proc.returncode == 0, proc.stderr
         assert f"incomplete: the run stopped early ({reason})" in proc.stdout
