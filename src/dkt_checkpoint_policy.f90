@@ -17,6 +17,7 @@ module dkt_checkpoint_policy
   use dkt_registry, only: itoa
   use dkt_run_state, only: simulation_t, path_t
   use dkt_restart_check, only: restart_problem
+  use dkt_restart_input, only: restart_input_check
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
   use dkt_io, only: io_flush
@@ -139,7 +140,8 @@ contains
 
   !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
   !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
-  !! another lattice or time step, or with another number of particles, stops every rank.
+  !! another lattice or time step, or with another number of particles, stops every rank, as
+  !! does an input that changes the checkpoint's physics beyond run.restart_changes.
   subroutine checkpoint_resume(sim, path)
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
@@ -150,6 +152,8 @@ contains
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
                          sim%dom%y0, chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
+    ! the physics first: a changed key explains a changed lattice better than its sizes
+    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &

@@ -20,7 +20,7 @@ module dkt_config
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
   public :: dx_knob, pair_d1, largest_diameter, particles_allocate, velocity_scale
-  public :: compressibility_class
+  public :: compressibility_class, build_registry
 
   !> &domain: the channel.
   type, public :: domain_cfg_t
@@ -155,6 +155,9 @@ module dkt_config
     real(wp) :: wall_limit = 0.0_wp       !! s of wall time after which the run checkpoints
                                           !! and stops; 0 = no limit
     real(wp) :: memory_limit = 0.0_wp     !! GiB a node may give the run; 0 = MemAvailable
+    !> the keys a --restart may change on purpose, 'group.key' separated by commas or blanks
+    !! (dkt_restart_input); '' = none beyond the run length, output and checkpoint keys
+    character(len=1024) :: restart_changes = ''
   end type run_cfg_t
 
   !> &output: where and how often results are written.
@@ -457,6 +460,10 @@ contains
     call add_real(reg, 'run', 'memory_limit', c%run%memory_limit, 'GiB', 'memory the ranks '// &
                   'of one node may use together; a run needing more is refused at start; '// &
                   '0 = MemAvailable of /proc/meminfo', ge=0.0_wp)
+    call add_string(reg, 'run', 'restart_changes', c%run%restart_changes, 'keys a --restart '// &
+                    'may change on purpose, as group.key separated by commas (e.g. '// &
+                    '''pair.density, particles.gravity''); the changes are recorded in the run '// &
+                    'file; empty = only the run length, output and checkpoint keys')
 
     call add_string(reg, 'output', 'dir', c%output%dir, &
                     'output directory; empty = runs/<namelist basename>')
