@@ -29,18 +29,10 @@ import numpy as np
 import pytest
 
 from dkt_run import INPUT, run, run_args, tree_digest
+from test_faults_chk import C1 as CHECKPOINTED
+from test_faults_chk import HALF, RANKS, STEPS
 
-RANKS = 2
-STEPS = 400
-C1 = [
-    "pair.gamma=1.3",
-    "lbm.cells_per_diameter=10",
-    "run.progress_every=0",
-    f"run.checkpoint_every={STEPS // 2}",
-    "run.checkpoint_keep=10",
-    f"run.steps={STEPS}",
-]
-HALF = f"case1_chk_{STEPS // 2:09d}.h5"
+C1 = [*CHECKPOINTED, f"run.steps={STEPS}"]
 TIMEOUT = 120
 
 CHANGES = {
