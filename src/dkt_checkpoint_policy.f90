@@ -152,8 +152,6 @@ contains
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
                          sim%dom%y0, chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
-    ! the physics first: a changed key explains a changed lattice better than its sizes
-    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
@@ -179,6 +177,8 @@ contains
         ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
+    ! the physics of its input (a lattice of other sizes was refused above with its sizes)
+    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
