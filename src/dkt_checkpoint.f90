@@ -65,6 +65,8 @@ module dkt_checkpoint
     real(wp), allocatable :: t_start(:), t_end(:), gap_min(:) !! the episodes so far
     integer :: precision = 0       !! how /f is stored: its index in STORAGE_NAMES
     logical :: checksums = .false. !! its values were checked against stored digests
+    !> the input of the run that wrote it (/given), read back; '' when the file has none
+    character(len=:), allocatable :: given
   end type checkpoint_t
 
 contains
@@ -211,7 +213,7 @@ contains
     type(io_file_t) :: pf
     integer :: ints(NINT), ne, nd, code(1)
     integer(hsize_t) :: dims(3)
-    logical :: exists, any_bad, foreign
+    logical :: exists, any_bad, foreign, has_given
     real(wp) :: rr(2), sums(2)
     real(wp), allocatable :: buf(:, :, :), ep(:, :), rows(:, :)
     integer, allocatable :: codes(:)
@@ -285,6 +287,10 @@ contains
       if (ne > 0) call io_get_real(pf, 'episodes', [integer(hsize_t) :: 0, 0], &
                                    [integer(hsize_t) :: ne, 3], ep)
       codes = 32
+      call io_dataset_dims(pf, 'given', nd, dims)
+      ! a checkpoint without digests may still hold its input
+      has_given = nd == 1 .and. dims(1) == max(1, ints(9))
+      if (has_given .and. .not. chk%checksums) call io_get_int(pf, 'given', codes)
       if (chk%checksums) then
         call io_get_int(pf, 'given', codes)
         call io_get_real(pf, 'state_checksum', [0_hsize_t], [2_hsize_t], sums)
@@ -294,11 +300,14 @@ contains
                  '/precision) does not match /state_checksum'
       end if
       if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_state()
+      chk%given = ''
+      if (has_given .and. len(pf%failed) == 0) chk%given = given_text(codes(:ints(9)))
       chk%t_start = ep(:, 1)
       chk%t_end = ep(:, 2)
       chk%gap_min = ep(:, 3)
     else
       allocate (chk%particles(NSTATE, 0), chk%t_start(0), chk%t_end(0), chk%gap_min(0))
+      chk%given = ''
     end if
     ! the populations only when they are this run's; the caller says why not
     if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. &
@@ -451,6 +460,22 @@ contains
       end do
     end function row_mismatch
   end subroutine checkpoint_read
+
+  !> The text of the character codes of /given (as checkpoint_write made them with ichar); ''
+  !! when a code is not one of a byte.
+  pure function given_text(codes) result(s)
+    integer, intent(in) :: codes(:)
+    character(len=:), allocatable :: s
+    integer :: k
+    if (any(codes < 0 .or. codes > 255)) then
+      s = ''
+      return
+    end if
+    allocate (character(len=size(codes)) :: s)
+    do k = 1, size(codes)
+      s(k:k) = char(codes(k))
+    end do
+  end function given_text
 
   !> 'NaN', 'Infinity' or '-Infinity', the text of a value that is not finite (without an ordered
   !! comparison, which traps on NaN in the checked build).

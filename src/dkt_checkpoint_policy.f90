@@ -17,6 +17,7 @@ module dkt_checkpoint_policy
   use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t, path_t
   use dkt_restart_check, only: restart_problem
+  use dkt_config_restart, only: restart_input_check
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
   use dkt_io, only: io_flush
@@ -139,7 +140,8 @@ contains
 
   !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
   !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
-  !! another lattice or time step, or with another number of particles, stops every rank.
+  !! another lattice or time step, or with another number of particles, stops every rank, as
+  !! does an input that changes the checkpoint's physics beyond run.restart_changes.
   subroutine checkpoint_resume(sim, path)
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
@@ -175,6 +177,8 @@ contains
         ', beyond the last step ', sim%lp%steps, ' of the scene; raise run.t_end to continue'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
+    ! the physics of its input (a lattice of other sizes was refused above with its sizes)
+    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &

@@ -34,7 +34,7 @@ module dkt_config
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
   public :: dx_knob, pair_d1, largest_diameter, particles_allocate, velocity_scale
-  public :: compressibility_class
+  public :: compressibility_class, config_registry
 
   character(len=*), parameter :: NL = new_line('a')
 

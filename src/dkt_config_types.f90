@@ -182,6 +182,9 @@ module dkt_config_types
     real(wp) :: wall_limit = 0.0_wp       !! s of wall time after which the run checkpoints
                                           !! and stops; 0 = no limit
     real(wp) :: memory_limit = 0.0_wp     !! GiB a node may give the run; 0 = MemAvailable
+    !> the keys a --restart may change on purpose, 'group.key' separated by commas or blanks
+    !! (dkt_config_restart); '' = none beyond the run length, output and checkpoint keys
+    character(len=1024) :: restart_changes = ''
   contains
     procedure :: register => run_register
   end type run_cfg_t
@@ -525,6 +528,10 @@ contains
     call add_real(reg, 'run', 'memory_limit', self%memory_limit, 'GiB', 'memory the ranks '// &
                   'of one node may use together; a run needing more is refused at start; '// &
                   '0 = MemAvailable of /proc/meminfo', ge=0.0_wp)
+    call add_string(reg, 'run', 'restart_changes', self%restart_changes, 'keys a --restart '// &
+                    'may change on purpose, as group.key separated by commas (e.g. '// &
+                    '''pair.density, particles.gravity''); the changes are recorded in the run '// &
+                    'file; empty = only the run length, output and checkpoint keys')
   end subroutine run_register
 
   !> Register the keys of &output, each bound to its component of `self`.

@@ -30,6 +30,8 @@ module dkt_output
   !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
   !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
   integer, parameter :: MAX_MPIIO_PATH = 240
+  !> the longest namelist io_write_run stores as the attribute /run namelist (dkt_io)
+  integer, parameter :: NAMELIST_ATTRIBUTE_MAX = 32768
 
   !> output fields and their units; in a scene with particles also the integer field
   !! `particle` (written by io_write_fields), in this order
@@ -85,6 +87,7 @@ contains
                                                                '_diagnostics.csv')
       if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
       call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
+      if (allocated(sim%restart_changes)) call record_restart_changes(sim)
       return
     end if
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
@@ -195,6 +198,24 @@ contains
       sim%csv_open = .true.
     end subroutine reopen_csv
   end subroutine output_open
+
+  !> The input changes run.restart_changes allowed on resuming: the /run string attribute
+  !! restart_changes_step_<step, 9 digits> = 'group.key old -> new; ...' (one per restart that
+  !! changed something, so that every change stays recorded), and the stored namelist becomes
+  !! the input the run continues with (when it is the attribute /run namelist; the dataset of a
+  !! scene of some 500 particles and more keeps the first input).
+  subroutine record_restart_changes(sim)
+    type(simulation_t), intent(inout) :: sim
+    character(len=9) :: digits
+    if (len(sim%restart_changes) == 0) return
+    write (digits, '(i9.9)') sim%step
+    call io_write_attribute(sim%io, '/run', 'restart_changes_step_'//digits, &
+                            sim%restart_changes)
+    if (len(sim%cfg%given) <= NAMELIST_ATTRIBUTE_MAX) &
+      call io_write_attribute(sim%io, '/run', 'namelist', sim%cfg%given)
+    call log_line('resumed at step '//itoa(sim%step)//' with the changes '// &
+                  sim%restart_changes//' (run.restart_changes)')
+  end subroutine record_restart_changes
 
   !> Stop every rank, before anything is written, when output.dir cannot take the run's
   !! files: it (or the parent it would be created in) is not a writable directory, or the full

@@ -55,6 +55,9 @@ module dkt_run_state
     logical :: restarted = .false.  !! the run resumed from a checkpoint
     logical :: interrupted = .false. !! stopped on a signal or the wall limit, to be resumed
     character(len=:), allocatable :: restart_from !! the checkpoint it resumed from
+    !> the changes of the input run.restart_changes allowed on resuming, for the run file:
+    !! 'group.key old -> new; ...', '' if none
+    character(len=:), allocatable :: restart_changes
     type(path_t), allocatable :: checkpoints(:)  !! written by this run (and the one resumed)
   end type simulation_t
 

@@ -12,6 +12,7 @@ program dktlbm
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
   use dkt_report, only: report_summary
   use dkt_checkpoint_policy, only: checkpoint_resume
+  use dkt_config_restart, only: restart_changes_problem
   use dkt_output, only: output_open, output_check_existing, output_check_dir
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
@@ -46,6 +47,7 @@ program dktlbm
   if (len(err) > 0) call fatal_all(err)
   ! validates the input (each key, then the rules that join keys) once and derives the lattice
   call config_load(cfg, text, cli%nml_file, cli%overrides, err, warnings, lp)
+  if (len(err) == 0) err = restart_changes_problem(cfg)
   if (len(err) > 0) call fatal_all(err)
   if (cli%print_defaults) then
     ! the file's values with the --set options applied, as a namelist that reads back

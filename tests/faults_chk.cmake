@@ -9,3 +9,10 @@ dkt_add_pytest(NAME faults_checkpoint FILE tests/test_faults_chk.py LABELS mpi r
 # fails by the timeout).
 dkt_add_fortran_test(NAME test_window_follow SOURCES dkt_check.f90 test_window_follow.f90
   LABELS unit NO_MPIEXEC TIMEOUT 30)
+# A restart continues the physics it started with (tests/test_faults_physics.py): a changed
+# gravity, collision model, bounce-back, viscosity or particle density is refused with the key
+# and both values and nothing touched, allowed and recorded through run.restart_changes; run
+# length and output keys resume bit for bit; a 2-rank checkpoint resumes on 3 uneven ranks.
+# About 10 short jobs on 2 and 3 ranks.
+dkt_add_pytest(NAME faults_physics FILE tests/test_faults_physics.py LABELS mpi regression
+  PROCESSORS 3 TIMEOUT 600)
