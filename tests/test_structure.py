@@ -1,0 +1,80 @@
+"""The structure limits of docs/design.md hold for src/, and tools/check_structure.py, which
+checks them, finds each kind of breach: a file over 800 lines, a procedure over 150 lines (a
+host counted with what it contains, continuation lines and strings with '!' handled), an input
+module used for more than its types and constants or without 'only:'. The main program may use
+the input layer freely."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(os.environ.get("DKTLBM_ROOT", Path(__file__).resolve().parent.parent))
+SCRIPT = ROOT / "tools" / "check_structure.py"
+
+
+def run(src: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(SCRIPT), str(src)], capture_output=True,
+                          text=True, timeout=60)
+
+
+def procedure(name: str, body_lines: int, inner: str = "") -> str:
+    body = "".join(f"    x = x + {k}  ! '!' in a comment\n" for k in range(body_lines))
+    contains = f"  contains\n{inner}" if inner else ""
+    return (f"  subroutine {name}(x)\n    real, intent(inout) :: x\n{body}{contains}"
+            f"  end subroutine {name}\n")
+
+
+def module(name: str, uses: str = "", procs: str = "") -> str:
+    return (f"module {name}\n{uses}  implicit none\n  private\ncontains\n{procs}"
+            f"end module {name}\n")
+
+
+def test_the_sources_keep_the_limits():
+    result = run(ROOT / "src")
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_a_long_file_is_found(tmp_path):
+    procs = "".join(procedure(f"p{k}", 100) for k in range(8))
+    (tmp_path / "dkt_big.f90").write_text(module("dkt_big", procs=procs))
+    result = run(tmp_path)
+    assert result.returncode == 1
+    assert "dkt_big.f90:1:" in result.stdout and "more than 800" in result.stdout
+    assert "procedure" not in result.stdout          # each procedure is within its limit
+
+
+def test_a_long_procedure_is_found_with_what_it_contains(tmp_path):
+    inner = procedure("helper", 70)
+    host = procedure("host", 80, inner)              # 80 + 70 + headers > 150
+    short = procedure("short", 140)                  # 144 lines with its header: allowed
+    continued = ("  subroutine cont(x, &\n      y)\n    real :: x, y\n    x = 'a!b' // &\n"
+                 "      'c'\n  end subroutine cont\n")
+    (tmp_path / "dkt_some.f90").write_text(module("dkt_some", procs=host + short + continued))
+    result = run(tmp_path)
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    assert len(lines) == 1, result.stdout
+    assert "procedure host is" in lines[0] and "more than 150" in lines[0]
+
+
+def test_an_input_module_used_for_more_than_its_types_is_found(tmp_path):
+    (tmp_path / "dkt_config.f90").write_text(module("dkt_config"))
+    good = module("dkt_good", "  use dkt_config, only: config_t, COLLISION_MRT, lp => params_t\n")
+    bad = module("dkt_bad", "  use dkt_config, only: config_t, &\n    kiss_thresholds\n"
+                 "  use dkt_registry\n")
+    main = ("program dktlbm\n  use dkt_config, only: config_load\n  use dkt_registry\n"
+            "end program dktlbm\n")
+    (tmp_path / "dkt_good.f90").write_text(good)
+    (tmp_path / "dkt_bad.f90").write_text(bad)
+    (tmp_path / "dktlbm.f90").write_text(main)
+    result = run(tmp_path)
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    assert len(lines) == 2, result.stdout
+    assert "dkt_bad.f90:2:" in lines[0] and "'kiss_thresholds'" in lines[0]
+    assert "dkt_bad.f90:4:" in lines[1] and "without 'only:'" in lines[1]
+
+
+def test_an_empty_directory_is_an_error(tmp_path):
+    assert run(tmp_path).returncode == 2
