@@ -24,7 +24,7 @@
 !> full, directory gone) never damages the previous checkpoint. A checkpoint is read only after
 !> its sizes and counts passed the checks of checkpoint_read (against the datasets' shapes, the
 !> scene and sane bounds), so a damaged file is refused before anything is allocated from it.
-!> The HDF5 calls are dkt_io's.
+!> The HDF5 calls are dkt_h5file's.
 module dkt_checkpoint
   use iso_fortran_env, only: int64
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
@@ -37,8 +37,8 @@ module dkt_checkpoint
   use dkt_registry, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
   use dkt_config, only: MAX_PARTICLES
-  use dkt_io, only: io_file_t, io_file_open, io_file_close, io_put_real, &
-                    io_put_int, io_get_real, io_get_int, io_dataset_dims
+  use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_put_real, &
+                        io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none
   private
   public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &

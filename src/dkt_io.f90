@@ -3,11 +3,10 @@
 !> (n_samples,)), tables with one column per particle (/<group>/<name>, h5py shape (n_samples,
 !> ncols)) and attributes on any group or dataset, plus the `<dir>/<name>.xdmf` sidecar (module
 !> dkt_xdmf) that lets ParaView/VisIt open the fields, and its continuation when a run resumes
-!> from a checkpoint (io_reopen). The checkpoint files (dkt_checkpoint) are written and read
-!> through the dataset helpers at the end (io_file_t), so that every HDF5 call of dktlbm is in
-!> this module. Every HDF5 return code is checked: in the run file a failed call stops the job
-!> (fatal_local); in a checkpoint it is recorded and io_file_close returns one message, the
-!> same on every rank, for the caller to stop the run cleanly.
+!> from a checkpoint (io_reopen). The checkpoint files are dkt_h5file's, which also holds the
+!> HDF5 library open while any file is; every HDF5 call of dktlbm is in these I/O modules.
+!> Every HDF5 return code is checked: in the run file a failed call stops the job
+!> (fatal_local).
 !>
 !> The solver is decomposed in 1-D slabs along y: a rank holds global rows y0+1 .. y0+nyl of
 !> every field, all nx columns, as a contiguous array (nx, nyl). Each rank writes its rows into a
@@ -21,11 +20,12 @@ module dkt_io
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, mpi_wp
   use dkt_errors, only: fatal_local
+  use dkt_h5file, only: h5_library_open, h5_file_opened, h5_file_closed
   use dkt_xdmf, only: xdmf_t, xdmf_init, xdmf_add_frame, xdmf_write, xdmf_delete, xdmf_free
   use mpi_f08, only: MPI_Comm, MPI_INFO_NULL, MPI_IN_PLACE, MPI_LOGICAL, MPI_INTEGER, &
                      MPI_CHARACTER, MPI_LOR, MPI_SUM, MPI_MAX, MPI_MIN, MPI_Comm_rank, &
                      MPI_Bcast, MPI_Allreduce
-  use hdf5, only: hid_t, hsize_t, size_t, h5open_f, h5close_f, h5kind_to_type, H5_REAL_KIND, &
+  use hdf5, only: hid_t, hsize_t, size_t, h5kind_to_type, H5_REAL_KIND, &
                   H5_INTEGER_KIND, h5fcreate_f, h5fclose_f, h5fflush_f, H5F_ACC_EXCL_F, &
                   H5F_ACC_TRUNC_F, H5F_SCOPE_GLOBAL_F, h5pcreate_f, h5pclose_f, &
                   H5P_FILE_ACCESS_F, H5P_DATASET_XFER_F, H5P_DATASET_CREATE_F, &
@@ -48,23 +48,9 @@ module dkt_io
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
             io_write_attribute, io_close, io_flush, io_file_exists, io_reopen
-  public :: io_file_open, io_file_close, io_put_real, io_put_int, &
-            io_get_real, io_get_int, io_dataset_dims
 
   !> A plain HDF5 file of whole datasets (a checkpoint), written or read by all ranks of a
   !! communicator. The first failed call is remembered (`failed`); reads after it are skipped,
-  !! and io_file_close reports it.
-  type, public :: io_file_t
-    integer(hid_t) :: file_id = -1
-    integer(hid_t) :: dxpl = -1      !! transfer: collective to write, independent to read
-    integer(hid_t) :: real_type = -1
-    integer(hid_t) :: int_type = -1
-    type(MPI_Comm) :: comm
-    integer :: rank = 0
-    logical :: writing = .false.
-    character(len=:), allocatable :: path
-    character(len=:), allocatable :: failed !! the first failed call, '' if none
-  end type io_file_t
 
   !> The rows appended to one extendible dataset since the last io_flush.
   type :: pending_t
@@ -115,11 +101,6 @@ module dkt_io
   interface io_write_attribute
     module procedure write_attribute_real, write_attribute_int, write_attribute_text
   end interface io_write_attribute
-
-  !> Files open through io_open in this process. The HDF5 library is process-global state: it is
-  !> opened with the first file and closed with the last, so that closing one io_t never
-  !> invalidates the identifiers of another (h5close_f closes every open object).
-  integer :: n_open_files = 0
 
   integer(hsize_t), parameter :: one(1) = [1_hsize_t]
   !> the longest namelist text (characters) stored as the attribute /run namelist; a longer one
@@ -188,10 +169,8 @@ contains
       return
     end if
 
-    if (n_open_files == 0) then
-      call h5open_f(hdferr)
-      call check(hdferr, 'h5open_f', io%path)
-    end if
+    call h5_library_open(hdferr)
+    call check(hdferr, 'h5open_f', io%path)
     fapl = parallel_access(io, comm)
     ! A failed create is reported as err below (one message, not an HDF5 stack per rank).
     call h5eset_auto_f(0, hdferr)
@@ -215,7 +194,7 @@ contains
             'and is writable'
       return
     end if
-    n_open_files = n_open_files + 1
+    call h5_file_opened()
 
     call set_open(io, comm, nx, ny, y0, nyl, dx)
 
@@ -264,10 +243,8 @@ contains
             'continues the output file of the run that wrote the checkpoint (same output.dir)'
       return
     end if
-    if (n_open_files == 0) then
-      call h5open_f(hdferr)
-      call check(hdferr, 'h5open_f', io%path)
-    end if
+    call h5_library_open(hdferr)
+    call check(hdferr, 'h5open_f', io%path)
     fapl = parallel_access(io, comm)
     ! a failed open is reported as err below (one message, not an HDF5 stack per rank)
     call h5eset_auto_f(0, hdferr)
@@ -283,7 +260,7 @@ contains
       err = 'cannot open '''//io%path//''' to continue it'
       return
     end if
-    n_open_files = n_open_files + 1
+    call h5_file_opened()
     call set_open(io, comm, nx, ny, y0, nyl, dx)
 
     ! every group is checked before anything is cut, so that a refused file stays as it was
@@ -812,6 +789,7 @@ contains
   subroutine io_close(io)
     type(io_t), intent(inout) :: io
     integer :: hdferr
+    logical :: closed
 
     if (.not. io%is_open) return
     call flush_pending(io)
@@ -821,11 +799,8 @@ contains
     call check(hdferr, 'h5pclose_f(transfer)', io%path)
     call h5fclose_f(io%file_id, hdferr)
     call check(hdferr, 'h5fclose_f', io%path)
-    n_open_files = n_open_files - 1
-    if (n_open_files == 0) then
-      call h5close_f(hdferr)
-      call check(hdferr, 'h5close_f', io%path)
-    end if
+    call h5_file_closed(closed, hdferr)
+    if (closed) call check(hdferr, 'h5close_f', io%path)
     io%is_open = .false.
     io%file_id = -1
     io%dxpl = -1
@@ -1300,299 +1275,5 @@ contains
     call h5dclose_f(dset, hdferr)
     call check(hdferr, 'h5dclose_f('//name//')', io%path)
   end subroutine put_dataset
-
-  ! ----------------------------------------------------------------- plain files (checkpoints)
-
-  !> Open `path` for every rank of `comm`: created (truncated) when `writing`, else an existing
-  !! file read-only. err is '' on success, else the same message on every rank and nothing is
-  !! open. HDF5 prints no error stacks until io_file_close: the caller reports a failure.
-  subroutine io_file_open(pf, path, comm, writing, err)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: path
-    type(MPI_Comm), intent(in) :: comm
-    logical, intent(in) :: writing
-    character(len=:), allocatable, intent(out) :: err
-    integer(hid_t) :: fapl
-    integer :: e(4), hdferr
-    logical :: bad, any_bad
-
-    err = ''
-    pf%path = path
-    pf%comm = comm
-    pf%writing = writing
-    pf%failed = ''
-    call MPI_Comm_rank(comm, pf%rank)
-    e = 0
-    if (n_open_files == 0) call h5open_f(e(1))
-    ! failures are reported as one message (err, io_file_close), not an HDF5 stack per rank
-    call h5eset_auto_f(0, e(2))
-    call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, e(3))
-    call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, e(4))
-    bad = minval(e) < 0
-    hdferr = -1
-    if (.not. bad) then
-      if (writing) then
-        call h5fcreate_f(path, H5F_ACC_TRUNC_F, pf%file_id, hdferr, access_prp=fapl)
-      else
-        call h5fopen_f(path, H5F_ACC_RDONLY_F, pf%file_id, hdferr, access_prp=fapl)
-      end if
-      call h5pclose_f(fapl, e(1))
-      bad = hdferr < 0 .or. e(1) < 0
-    end if
-    call MPI_Allreduce(bad, any_bad, 1, MPI_LOGICAL, MPI_LOR, comm)
-    if (any_bad) then
-      ! a file open on some ranks only stays open: closing it is collective and could hang
-      call h5eset_auto_f(1, hdferr)
-      if (writing) then
-        err = 'cannot create '''//path//''''
-      else
-        err = 'cannot open '''//path//''' as an HDF5 file'
-      end if
-      return
-    end if
-    n_open_files = n_open_files + 1
-    pf%real_type = h5kind_to_type(wp, H5_REAL_KIND)
-    pf%int_type = h5kind_to_type(kind(0), H5_INTEGER_KIND)
-    call h5pcreate_f(H5P_DATASET_XFER_F, pf%dxpl, hdferr)
-    call note(pf, hdferr, 'h5pcreate_f(transfer)')
-    ! writes are collective (faster on a parallel file system); reads are independent, so
-    ! that a rank that fails on a damaged file never leaves the others waiting in a read
-    if (writing) then
-      call h5pset_dxpl_mpio_f(pf%dxpl, H5FD_MPIO_COLLECTIVE_F, hdferr)
-    else
-      call h5pset_dxpl_mpio_f(pf%dxpl, H5FD_MPIO_INDEPENDENT_F, hdferr)
-    end if
-    call note(pf, hdferr, 'h5pset_dxpl_mpio_f')
-  end subroutine io_file_open
-
-  !> Close the file; err is '' when every call since it was opened succeeded on every rank,
-  !! else the same message on every rank naming the file and the first failed call.
-  subroutine io_file_close(pf, err)
-    type(io_file_t), intent(inout) :: pf
-    character(len=:), allocatable, intent(out) :: err
-    integer :: hdferr, owner
-    logical :: bad, any_bad
-    character(len=256) :: what
-
-    err = ''
-    if (pf%dxpl >= 0) then
-      call h5pclose_f(pf%dxpl, hdferr)
-      call note(pf, hdferr, 'h5pclose_f(transfer)')
-    end if
-    call h5fclose_f(pf%file_id, hdferr)
-    call note(pf, hdferr, 'h5fclose_f')
-    n_open_files = n_open_files - 1
-    if (n_open_files == 0) then
-      call h5close_f(hdferr)
-      call note(pf, hdferr, 'h5close_f')
-    else
-      call h5eset_auto_f(1, hdferr)
-      call note(pf, hdferr, 'h5eset_auto_f')
-    end if
-    pf%file_id = -1
-    pf%dxpl = -1
-    bad = len(pf%failed) > 0
-    call MPI_Allreduce(bad, any_bad, 1, MPI_LOGICAL, MPI_LOR, pf%comm)
-    if (.not. any_bad) return
-    ! the message of the lowest rank that failed, so all ranks say the same
-    call MPI_Allreduce(merge(pf%rank, huge(0), bad), owner, 1, MPI_INTEGER, MPI_MIN, pf%comm)
-    what = ''
-    if (bad) what = pf%failed
-    call MPI_Bcast(what, len(what), MPI_CHARACTER, owner, pf%comm)
-    err = 'HDF5 call '//trim(what)//' failed on '''//pf%path//''''
-  end subroutine io_file_close
-
-  !> Record the first failed call.
-  subroutine note(pf, hdferr, what)
-    type(io_file_t), intent(inout) :: pf
-    integer, intent(in) :: hdferr
-    character(len=*), intent(in) :: what
-    if (hdferr < 0 .and. len(pf%failed) == 0) pf%failed = what
-  end subroutine note
-
-  !> The dimensions of dataset `name` in Fortran order (h5py's reversed): ndims = -1 when there
-  !! is no such dataset or its shape cannot be read (a damaged file).
-  subroutine io_dataset_dims(pf, name, ndims, dims)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer, intent(out) :: ndims
-    integer(hsize_t), intent(out) :: dims(3) !! the first ndims are set
-    integer(hid_t) :: dset, space
-    integer(hsize_t) :: maxdims(3)
-    integer :: hdferr
-    logical :: exists
-    ndims = -1
-    dims = 0
-    if (len(pf%failed) > 0) return
-    call h5lexists_f(pf%file_id, name, exists, hdferr)
-    if (hdferr < 0 .or. .not. exists) return
-    call h5dopen_f(pf%file_id, name, dset, hdferr)
-    if (hdferr < 0) return
-    call h5dget_space_f(dset, space, hdferr)
-    if (hdferr >= 0) then
-      call h5sget_simple_extent_ndims_f(space, ndims, hdferr)
-      if (hdferr < 0 .or. ndims > 3 .or. ndims < 0) then
-        ndims = -1
-      else if (ndims > 0) then
-        call h5sget_simple_extent_dims_f(space, dims(1:ndims), maxdims(1:ndims), hdferr)
-        if (hdferr < 0) ndims = -1
-      end if
-      call h5sclose_f(space, hdferr)
-      call note(pf, hdferr, 'h5sclose_f('//name//')')
-    else
-      ndims = -1
-    end if
-    call h5dclose_f(dset, hdferr)
-    call note(pf, hdferr, 'h5dclose_f('//name//')')
-  end subroutine io_dataset_dims
-
-  !> Create the real dataset `name` of dimensions `dims` (Fortran order); this rank writes its
-  !! block (start, count) from `values` when `mine`, and nothing otherwise. Collective.
-  subroutine io_put_real(pf, name, dims, start, count, values, mine)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer(hsize_t), intent(in) :: dims(:), start(:), count(:)
-    real(wp), intent(in) :: values(*)
-    logical, intent(in) :: mine
-    call put_block(pf, name, pf%real_type, dims, start, count, mine, r=values)
-  end subroutine io_put_real
-
-  !> Create the 1-D integer dataset `name` holding rank 0's `values`. Collective.
-  subroutine io_put_int(pf, name, values)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer, intent(in) :: values(:)
-    integer(hsize_t) :: n(1)
-    n = size(values, kind=hsize_t)
-    call put_block(pf, name, pf%int_type, n, [0_hsize_t], n, pf%rank == 0, i=values)
-  end subroutine io_put_int
-
-  !> Every rank makes the same calls in the same order, even after a failure, because dataset
-  !! creation and collective writes need all ranks; io_file_close reports the failure.
-  subroutine put_block(pf, name, htype, dims, start, count, mine, r, i)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer(hid_t), intent(in) :: htype
-    integer(hsize_t), intent(in) :: dims(:), start(:), count(:)
-    logical, intent(in) :: mine
-    real(wp), intent(in), optional :: r(*)
-    integer, intent(in), optional :: i(*)
-    integer(hid_t) :: space, dset, mspace
-    integer(hsize_t) :: n
-    integer :: hdferr
-    real(wp) :: rdummy(1)
-    integer :: idummy(1)
-
-    n = product(count)
-    call h5screate_simple_f(size(dims), dims, space, hdferr)
-    call note(pf, hdferr, 'h5screate_simple_f('//name//')')
-    call h5dcreate_f(pf%file_id, name, htype, space, dset, hdferr)
-    call note(pf, hdferr, 'h5dcreate_f('//name//')')
-    if (mine .and. n > 0) then
-      mspace = select_block(pf, space, start, count, name)
-      if (present(r)) then
-        call h5dwrite_f(dset, htype, r(1:n), count, hdferr, mem_space_id=mspace, &
-                        file_space_id=space, xfer_prp=pf%dxpl)
-      else
-        call h5dwrite_f(dset, htype, i(1:n), count, hdferr, mem_space_id=mspace, &
-                        file_space_id=space, xfer_prp=pf%dxpl)
-      end if
-    else
-      call h5sselect_none_f(space, hdferr)
-      call note(pf, hdferr, 'h5sselect_none_f('//name//')')
-      call h5screate_simple_f(1, one, mspace, hdferr)
-      call note(pf, hdferr, 'h5screate_simple_f('//name//')')
-      call h5sselect_none_f(mspace, hdferr)
-      call note(pf, hdferr, 'h5sselect_none_f('//name//')')
-      rdummy = 0.0_wp
-      idummy = 0
-      if (present(r)) then
-        call h5dwrite_f(dset, htype, rdummy, one, hdferr, mem_space_id=mspace, &
-                        file_space_id=space, xfer_prp=pf%dxpl)
-      else
-        call h5dwrite_f(dset, htype, idummy, one, hdferr, mem_space_id=mspace, &
-                        file_space_id=space, xfer_prp=pf%dxpl)
-      end if
-    end if
-    call note(pf, hdferr, 'h5dwrite_f('//name//')')
-    call h5sclose_f(mspace, hdferr)
-    call note(pf, hdferr, 'h5sclose_f('//name//')')
-    call h5sclose_f(space, hdferr)
-    call note(pf, hdferr, 'h5sclose_f('//name//')')
-    call h5dclose_f(dset, hdferr)
-    call note(pf, hdferr, 'h5dclose_f('//name//')')
-  end subroutine put_block
-
-  !> Select block (start, count) of the file space `space` of dataset `name`; returns the
-  !! memory space of the block.
-  function select_block(pf, space, start, count, name) result(mspace)
-    type(io_file_t), intent(inout) :: pf
-    integer(hid_t), intent(in) :: space
-    integer(hsize_t), intent(in) :: start(:), count(:)
-    character(len=*), intent(in) :: name
-    integer(hid_t) :: mspace
-    integer :: hdferr
-    call h5sselect_hyperslab_f(space, H5S_SELECT_SET_F, start, count, hdferr)
-    call note(pf, hdferr, 'h5sselect_hyperslab_f('//name//')')
-    call h5screate_simple_f(size(count), count, mspace, hdferr)
-    call note(pf, hdferr, 'h5screate_simple_f('//name//')')
-  end function select_block
-
-  !> Read block (start, count) of the real dataset `name` into values(1:product(count)). The
-  !! caller has checked the dataset's dimensions (io_dataset_dims). Skipped after a failure.
-  subroutine io_get_real(pf, name, start, count, values)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer(hsize_t), intent(in) :: start(:), count(:)
-    real(wp), intent(inout) :: values(*)
-    call get_block(pf, name, pf%real_type, start, count, r=values)
-  end subroutine io_get_real
-
-  !> Read the first size(values) entries of the 1-D integer dataset `name`.
-  subroutine io_get_int(pf, name, values)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer, intent(inout) :: values(:)
-    call get_block(pf, name, pf%int_type, [0_hsize_t], [size(values, kind=hsize_t)], i=values)
-  end subroutine io_get_int
-
-  subroutine get_block(pf, name, htype, start, count, r, i)
-    type(io_file_t), intent(inout) :: pf
-    character(len=*), intent(in) :: name
-    integer(hid_t), intent(in) :: htype
-    integer(hsize_t), intent(in) :: start(:), count(:)
-    real(wp), intent(inout), optional :: r(*)
-    integer, intent(inout), optional :: i(*)
-    integer(hid_t) :: dset, space, mspace
-    integer(hsize_t) :: n
-    integer :: hdferr
-
-    n = product(count)
-    if (len(pf%failed) > 0 .or. n == 0) return
-    call h5dopen_f(pf%file_id, name, dset, hdferr)
-    call note(pf, hdferr, 'h5dopen_f('//name//')')
-    if (hdferr < 0) return
-    call h5dget_space_f(dset, space, hdferr)
-    call note(pf, hdferr, 'h5dget_space_f('//name//')')
-    if (hdferr >= 0) then
-      mspace = select_block(pf, space, start, count, name)
-      if (len(pf%failed) == 0) then
-        if (present(r)) then
-          call h5dread_f(dset, htype, r(1:n), count, hdferr, mem_space_id=mspace, &
-                         file_space_id=space, xfer_prp=pf%dxpl)
-        else
-          call h5dread_f(dset, htype, i(1:n), count, hdferr, mem_space_id=mspace, &
-                         file_space_id=space, xfer_prp=pf%dxpl)
-        end if
-        call note(pf, hdferr, 'h5dread_f('//name//')')
-        call h5sclose_f(mspace, hdferr)
-        call note(pf, hdferr, 'h5sclose_f('//name//')')
-      end if
-      call h5sclose_f(space, hdferr)
-      call note(pf, hdferr, 'h5sclose_f('//name//')')
-    end if
-    call h5dclose_f(dset, hdferr)
-    call note(pf, hdferr, 'h5dclose_f('//name//')')
-  end subroutine get_block
 
 end module dkt_io
