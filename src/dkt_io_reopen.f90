@@ -114,8 +114,8 @@ contains
     character(len=:), allocatable, intent(inout) :: err
     character(len=64), allocatable :: names(:)
     integer, allocatable :: kinds(:)
-    integer(hid_t) :: dset, space
-    integer(hsize_t) :: dims(2), maxdims(2)
+    integer(hid_t) :: dset
+    integer(hsize_t) :: dims(2)
     integer :: j, nd, hdferr
     character(len=20) :: held
     character(len=:), allocatable :: what
@@ -128,14 +128,7 @@ contains
       else if (kinds(j) == H5G_DATASET_F) then
         call h5dopen_f(io%file_id, what, dset, hdferr)
         call check(hdferr, 'h5dopen_f('//what//')', io%path)
-        call h5dget_space_f(dset, space, hdferr)
-        call check(hdferr, 'h5dget_space_f('//what//')', io%path)
-        call h5sget_simple_extent_ndims_f(space, nd, hdferr)
-        call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
-        call h5sget_simple_extent_dims_f(space, dims(1:nd), maxdims(1:nd), hdferr)
-        call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
-        call h5sclose_f(space, hdferr)
-        call check(hdferr, 'h5sclose_f', io%path)
+        call extent(io, dset, what, nd, dims)
         ! samples run along the last HDF5 dimension (write_rows)
         if (.not. cut .and. dims(nd) < samples .and. len(err) == 0) then
           write (held, '(i0)') dims(nd)
@@ -225,21 +218,36 @@ contains
   integer function dataset_length(io, path) result(n)
     type(io_t), intent(in) :: io
     character(len=*), intent(in) :: path
-    integer(hid_t) :: dset, space
-    integer(hsize_t) :: dims(1), maxdims(1)
-    integer :: hdferr
+    integer(hid_t) :: dset
+    integer(hsize_t) :: dims(2)
+    integer :: hdferr, nd
     call h5dopen_f(io%file_id, path, dset, hdferr)
     call check(hdferr, 'h5dopen_f('//path//')', io%path)
-    call h5dget_space_f(dset, space, hdferr)
-    call check(hdferr, 'h5dget_space_f('//path//')', io%path)
-    call h5sget_simple_extent_dims_f(space, dims, maxdims, hdferr)
-    call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//path//')', io%path)
+    call extent(io, dset, path, nd, dims)
     n = int(dims(1))
-    call h5sclose_f(space, hdferr)
-    call check(hdferr, 'h5sclose_f', io%path)
     call h5dclose_f(dset, hdferr)
     call check(hdferr, 'h5dclose_f('//path//')', io%path)
   end function dataset_length
+
+  !> The rank `nd` (1 or 2) and dimensions of the open dataset `dset` at `what`.
+  subroutine extent(io, dset, what, nd, dims)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: dset
+    character(len=*), intent(in) :: what
+    integer, intent(out) :: nd
+    integer(hsize_t), intent(out) :: dims(2)
+    integer(hid_t) :: space
+    integer(hsize_t) :: maxdims(2)
+    integer :: hdferr
+    call h5dget_space_f(dset, space, hdferr)
+    call check(hdferr, 'h5dget_space_f('//what//')', io%path)
+    call h5sget_simple_extent_ndims_f(space, nd, hdferr)
+    call check(hdferr, 'h5sget_simple_extent_ndims_f('//what//')', io%path)
+    call h5sget_simple_extent_dims_f(space, dims(1:nd), maxdims(1:nd), hdferr)
+    call check(min(hdferr, 0), 'h5sget_simple_extent_dims_f('//what//')', io%path)
+    call h5sclose_f(space, hdferr)
+    call check(hdferr, 'h5sclose_f', io%path)
+  end subroutine extent
 
   !> `found` in the order of field_order, names not in it last
   function ordered(found, field_order) result(out)
