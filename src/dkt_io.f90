@@ -204,17 +204,18 @@ contains
       call MPI_Allreduce(MPI_IN_PLACE, biggest, 1, MPI_INTEGER, MPI_MAX, io%comm)
       if (biggest <= huge(1_int16)) then
         bytes(nf) = -2
-        call put_solid(h5kind_to_type(int16, H5_INTEGER_KIND), .true.)
+        call put_solid(io, grp, gdims, start, count, solid, &
+                       h5kind_to_type(int16, H5_INTEGER_KIND), .true.)
       else
         bytes(nf) = -(storage_size(1)/8)
-        call put_solid(io%int_type, .false.)
+        call put_solid(io, grp, gdims, start, count, solid, io%int_type, .false.)
       end if
     end if
     np = 0
     if (present(disks)) then
       np = size(disks, 1)
       if (size(disks, 2) /= 6) call fatal_local('io_write_fields: disks must have shape (n, 6)')
-      if (np > 0) call put_disks()
+      if (np > 0) call put_disks(io, grp, gname, disks)
     end if
     call h5gclose_f(grp, hdferr)
     call check(hdferr, 'h5gclose_f('//gname//')', io%path)
@@ -223,65 +224,74 @@ contains
 
     call xdmf_add_frame(io%xdmf, step, t, offset, gname, listed(1:nf), bytes(1:nf), np)
     if (io%rank == 0) call xdmf_write(io%xdmf)
-  contains
-    !> The particle numbers as int16 (`short`) or default integers, in a buffer of the type
-    !! written, so that HDF5 converts nothing (a conversion would end collective writes).
-    subroutine put_solid(htype, short)
-      integer(hid_t), intent(in) :: htype
-      logical, intent(in) :: short
-      integer(int16), allocatable, target :: i2(:, :)
-      integer, allocatable, target :: i4(:, :)
-      if (short) then
-        allocate (i2(io%nx, max(1, io%nyl)))
-        i2 = 0_int16
-        i2(:, 1:io%nyl) = int(solid, int16)
-        call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i2), '1', &
-                         chunked=.true.)
-      else
-        allocate (i4(io%nx, max(1, io%nyl)))
-        i4 = 0
-        i4(:, 1:io%nyl) = solid
-        call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i4), '1', &
-                         chunked=.true.)
-      end if
-    end subroutine put_solid
-
-    !> The disks as rank 0 has them (the particle state is the same on every rank).
-    subroutine put_disks()
-      integer(hid_t) :: pgrp
-      real(wp), allocatable, target :: xyz(:, :), uvw(:, :), col(:, :)
-      integer, allocatable, target :: ids(:)
-      integer(hsize_t) :: d2(2), d1(1), c2(2), c1(1), z2(2), z1(1)
-      integer :: j
-      allocate (xyz(3, np), uvw(3, np), col(np, 2), ids(np))
-      xyz = 0.0_wp
-      uvw = 0.0_wp
-      xyz(1:2, :) = transpose(disks(:, 1:2))
-      uvw(1:2, :) = transpose(disks(:, 3:4))
-      col(:, 1) = disks(:, 6)
-      col(:, 2) = disks(:, 5)
-      ids = [(j, j=1, np)]
-      d2 = [integer(hsize_t) :: 3, np]
-      d1 = [integer(hsize_t) :: np]
-      z2 = 0
-      z1 = 0
-      c2 = merge(d2, z2, io%rank == 0)
-      c1 = merge(d1, z1, io%rank == 0)
-      call h5gcreate_f(grp, 'particles', pgrp, hdferr)
-      call check(hdferr, 'h5gcreate_f('//gname//'/particles)', io%path)
-      call put_dataset(io, pgrp, 'position', io%real_type, d2, z2, c2, c_loc(xyz), 'cm', &
-                       chunked=.false.)
-      call put_dataset(io, pgrp, 'velocity', io%real_type, d2, z2, c2, c_loc(uvw), 'cm/s', &
-                       chunked=.false.)
-      call put_dataset(io, pgrp, 'radius', io%real_type, d1, z1, c1, c_loc(col(1, 1)), 'cm', &
-                       chunked=.false.)
-      call put_dataset(io, pgrp, 'omega', io%real_type, d1, z1, c1, c_loc(col(1, 2)), '1/s', &
-                       chunked=.false.)
-      call put_dataset(io, pgrp, 'id', io%int_type, d1, z1, c1, c_loc(ids), '1', chunked=.false.)
-      call h5gclose_f(pgrp, hdferr)
-      call check(hdferr, 'h5gclose_f('//gname//'/particles)', io%path)
-    end subroutine put_disks
   end subroutine io_write_fields
+
+  !> The particle numbers as int16 (`short`) or default integers, in a buffer of the type
+  !! written, so that HDF5 converts nothing (a conversion would end collective writes).
+  subroutine put_solid(io, grp, gdims, start, count, solid, htype, short)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: grp                 !! the snapshot's group
+    integer(hsize_t), intent(in) :: gdims(2), start(2), count(2) !! the fields' hyperslab
+    integer, intent(in) :: solid(:, :)                !! (nx, nyl): particle number, 0 = fluid
+    integer(hid_t), intent(in) :: htype
+    logical, intent(in) :: short
+    integer(int16), allocatable, target :: i2(:, :)
+    integer, allocatable, target :: i4(:, :)
+    if (short) then
+      allocate (i2(io%nx, max(1, io%nyl)))
+      i2 = 0_int16
+      i2(:, 1:io%nyl) = int(solid, int16)
+      call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i2), '1', &
+                       chunked=.true.)
+    else
+      allocate (i4(io%nx, max(1, io%nyl)))
+      i4 = 0
+      i4(:, 1:io%nyl) = solid
+      call put_dataset(io, grp, 'particle', htype, gdims, start, count, c_loc(i4), '1', &
+                       chunked=.true.)
+    end if
+  end subroutine put_solid
+
+  !> The disks as rank 0 has them (the particle state is the same on every rank).
+  subroutine put_disks(io, grp, gname, disks)
+    type(io_t), intent(in) :: io
+    integer(hid_t), intent(in) :: grp          !! the snapshot's group
+    character(len=*), intent(in) :: gname      !! its path, for messages
+    real(wp), intent(in) :: disks(:, :)        !! (n, 6) as io_write_fields
+    integer(hid_t) :: pgrp
+    real(wp), allocatable, target :: xyz(:, :), uvw(:, :), col(:, :)
+    integer, allocatable, target :: ids(:)
+    integer(hsize_t) :: d2(2), d1(1), c2(2), c1(1), z2(2), z1(1)
+    integer :: j, np, hdferr
+    np = size(disks, 1)
+    allocate (xyz(3, np), uvw(3, np), col(np, 2), ids(np))
+    xyz = 0.0_wp
+    uvw = 0.0_wp
+    xyz(1:2, :) = transpose(disks(:, 1:2))
+    uvw(1:2, :) = transpose(disks(:, 3:4))
+    col(:, 1) = disks(:, 6)
+    col(:, 2) = disks(:, 5)
+    ids = [(j, j=1, np)]
+    d2 = [integer(hsize_t) :: 3, np]
+    d1 = [integer(hsize_t) :: np]
+    z2 = 0
+    z1 = 0
+    c2 = merge(d2, z2, io%rank == 0)
+    c1 = merge(d1, z1, io%rank == 0)
+    call h5gcreate_f(grp, 'particles', pgrp, hdferr)
+    call check(hdferr, 'h5gcreate_f('//gname//'/particles)', io%path)
+    call put_dataset(io, pgrp, 'position', io%real_type, d2, z2, c2, c_loc(xyz), 'cm', &
+                     chunked=.false.)
+    call put_dataset(io, pgrp, 'velocity', io%real_type, d2, z2, c2, c_loc(uvw), 'cm/s', &
+                     chunked=.false.)
+    call put_dataset(io, pgrp, 'radius', io%real_type, d1, z1, c1, c_loc(col(1, 1)), 'cm', &
+                     chunked=.false.)
+    call put_dataset(io, pgrp, 'omega', io%real_type, d1, z1, c1, c_loc(col(1, 2)), '1/s', &
+                     chunked=.false.)
+    call put_dataset(io, pgrp, 'id', io%int_type, d1, z1, c1, c_loc(ids), '1', chunked=.false.)
+    call h5gclose_f(pgrp, hdferr)
+    call check(hdferr, 'h5gclose_f('//gname//'/particles)', io%path)
+  end subroutine put_disks
 
   !> Append one row to the extendible 1-D datasets /<group>/<names(k)> (h5py shape
   !! (n_samples,)), created on first use, with the group. The values of rank 0 are written; the
