@@ -24,7 +24,7 @@
 !> full, directory gone) never damages the previous checkpoint. A checkpoint is read only after
 !> its sizes and counts passed the checks of checkpoint_read (against the datasets' shapes, the
 !> scene and sane bounds), so a damaged file is refused before anything is allocated from it.
-!> The HDF5 calls are dkt_io's.
+!> The HDF5 calls are dkt_h5file's.
 module dkt_checkpoint
   use iso_fortran_env, only: int64
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
@@ -38,8 +38,8 @@ module dkt_checkpoint
   use dkt_text, only: itoa
   ! the most particles a scene may hold: a count above it in a checkpoint is a damaged file
   use dkt_kinds, only: MAX_PARTICLES
-  use dkt_io, only: io_file_t, io_file_open, io_file_close, io_put_real, &
-                    io_put_int, io_get_real, io_get_int, io_dataset_dims
+  use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_put_real, &
+                        io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none
   private
   public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &
@@ -211,14 +211,49 @@ contains
     type(checkpoint_t), intent(out) :: chk
     character(len=:), allocatable, intent(out) :: err
     type(io_file_t) :: pf
-    integer :: ints(NINT), ne, nd, code(1)
-    integer(hsize_t) :: dims(3)
-    logical :: exists, any_bad, foreign, has_given
-    real(wp) :: rr(2), sums(2)
-    real(wp), allocatable :: buf(:, :, :), ep(:, :), rows(:, :)
-    integer, allocatable :: codes(:)
+    integer :: ints(NINT)
+    logical :: foreign
+    real(wp) :: rr(2)
     character(len=:), allocatable :: what, close_err
-    character(len=160) :: msg
+
+    call open_checkpoint(path, comm, pf, err)
+    if (len(err) > 0) return
+    call read_header(pf, chk, ints, rr, foreign, what)
+    if (len(what) == 0) call read_precision(pf, chk, what)
+    ! the digests: both or none (a checkpoint written before they existed)
+    if (len(what) == 0) what = checksum_shapes(pf, chk, ints(9))
+    if (len(what) == 0) then
+      call read_state(pf, chk, ints, rr, what)
+    else
+      allocate (chk%particles(NSTATE, 0), chk%t_start(0), chk%t_end(0), chk%gap_min(0))
+      chk%given = ''
+    end if
+    ! the populations only when they are this run's; the caller says why not
+    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. &
+        chk%precision == storage_code(f)) &
+      call read_populations(pf, f, nx, nyl, y0, chk%checksums, what)
+    if (len(what) == 0 .and. len(pf%failed) > 0) what = 'its datasets cannot be read'
+    call io_file_close(pf, close_err)
+    ! a problem seen on any rank is everyone's (the slabs read different rows): the message
+    ! of the lowest rank that saw one
+    call agree(what, comm)
+    if (foreign) then
+      err = 'restart file '''//path//''' is not a dktlbm checkpoint (no /state_int)'
+    else if (len(what) > 0) then
+      err = 'restart file '''//path//''' is damaged: '//what//'; use an earlier checkpoint'
+    else if (len(close_err) > 0) then
+      err = 'restart file '''//path//''' is damaged: '//close_err//'; use an earlier checkpoint'
+    end if
+  end subroutine checkpoint_read
+
+  !> Open the checkpoint at `path` for reading on every rank of `comm`; err is '' on success,
+  !! else the same message on every rank (the file is missing or not HDF5).
+  subroutine open_checkpoint(path, comm, pf, err)
+    character(len=*), intent(in) :: path
+    type(MPI_Comm), intent(in) :: comm
+    type(io_file_t), intent(inout) :: pf
+    character(len=:), allocatable, intent(out) :: err
+    logical :: exists, any_bad
 
     err = ''
     inquire (file=path, exist=exists)
@@ -232,8 +267,21 @@ contains
       err = 'restart file '''//path//''' is not a dktlbm checkpoint (not HDF5, or damaged)'
       return
     end if
+  end subroutine open_checkpoint
 
-    ! the header: its shape first, then its values, each against what the others say
+  !> The header: /state_int into `ints` and /state_real into `rr`, their shapes first, then
+  !! their values (into chk), each against what the others say. `foreign` when the file has
+  !! no /state_int at all; `what` is what is wrong, '' if nothing.
+  subroutine read_header(pf, chk, ints, rr, foreign, what)
+    type(io_file_t), intent(inout) :: pf
+    type(checkpoint_t), intent(inout) :: chk
+    integer, intent(out) :: ints(NINT)
+    real(wp), intent(out) :: rr(2)
+    logical, intent(out) :: foreign
+    character(len=:), allocatable, intent(out) :: what
+    integer :: nd
+    integer(hsize_t) :: dims(3)
+
     what = ''
     ints = 0
     rr = 0.0_wp
@@ -257,209 +305,242 @@ contains
     chk%nx = ints(4)
     chk%ny = ints(5)
     chk%np = ints(6)
-    ne = ints(7)
     chk%in_episode = ints(8) == 1
     chk%dx = rr(1)
     chk%dt = rr(2)
-    if (len(what) == 0) what = header_problem()
-    ! the storage of /f; a checkpoint without /precision was written in 8 bytes
+    if (len(what) == 0) what = header_problem(pf, chk, ints)
+  end subroutine read_header
+
+  !> What is wrong with the header, '' if nothing: the counts against sane bounds and the
+  !! datasets' shapes (so nothing is allocated from a wrong count).
+  function header_problem(pf, chk, ints) result(p)
+    type(io_file_t), intent(inout) :: pf
+    type(checkpoint_t), intent(in) :: chk
+    integer, intent(in) :: ints(NINT)
+    character(len=:), allocatable :: p
+    integer(int64) :: last
+    integer :: ne, nd
+    integer(hsize_t) :: dims(3)
+    character(len=160) :: msg
+
+    ne = ints(7)
+    ! step + 1, which a step of huge(0) must not overflow
+    last = int(chk%step, int64) + 1
+    p = ''
+    if (chk%step < 0 .or. chk%samples < 0 .or. chk%samples > last) then
+      write (msg, '(a,i0,a,i0,a)') '/state_int holds step ', chk%step, ' and samples ', &
+        chk%samples, ' (0 <= samples <= step + 1)'
+      p = trim(msg)
+    else if (chk%shift < 0 .or. chk%shift > last) then
+      ! the window moves down only, and less than a row a step (run.particle_speed_limit <= 1)
+      write (msg, '(a,i0,a,i0,a)') '/state_int holds a window shift of ', chk%shift, &
+        ' rows at step ', chk%step, ' (0 to step + 1)'
+      p = trim(msg)
+    else if (chk%nx < 1 .or. chk%ny < 1) then
+      write (msg, '(a,i0,a,i0)') 'a lattice of ', chk%nx, ' x ', chk%ny
+      p = trim(msg)
+    else if (chk%np < 0 .or. chk%np > MAX_PARTICLES) then
+      write (msg, '(a,i0,a,i0,a)') 'a particle count of ', chk%np, ' (0 to ', MAX_PARTICLES, ')'
+      p = trim(msg)
+    else if (ne < 0 .or. ne > last) then
+      write (msg, '(a,i0,a)') 'an episode count of ', ne, ' (0 to step + 1)'
+      p = trim(msg)
+    else if (ints(8) /= 0 .and. ints(8) /= 1) then
+      p = 'an in-episode flag other than 0 or 1'
+    else if (ints(9) < 0) then
+      p = 'a negative length of /given'
+    else if (.not. (ieee_is_finite(chk%dx) .and. ieee_is_finite(chk%dt))) then
+      p = 'a lattice spacing or time step that is not a positive number'
+    else if (.not. (chk%dx > 0.0_wp .and. chk%dt > 0.0_wp)) then
+      p = 'a lattice spacing or time step that is not a positive number'
+    end if
+    if (len(p) > 0) return
+    call io_dataset_dims(pf, 'f', nd, dims)
+    if (nd /= 3 .or. any(dims /= [integer(hsize_t) :: chk%nx, chk%ny, 9])) then
+      p = '/f does not hold the '//itoa(chk%nx)//' x '//itoa(chk%ny)//' x 9 populations '// &
+          'of its header'
+      return
+    end if
+    call io_dataset_dims(pf, 'particles', nd, dims)
+    if (chk%np > 0 .and. (nd /= 2 .or. dims(1) /= NSTATE .or. dims(2) /= chk%np)) then
+      p = '/particles does not hold the '//itoa(chk%np)//' particles of its header'
+      return
+    end if
+    call io_dataset_dims(pf, 'episodes', nd, dims)
+    if (ne > 0 .and. (nd /= 2 .or. dims(1) /= ne .or. dims(2) /= 3)) then
+      p = '/episodes does not hold the '//itoa(ne)//' episodes of its header'
+      return
+    end if
+    if (len(pf%failed) > 0) p = 'its datasets cannot be read'
+  end function header_problem
+
+  !> The storage of /f into chk%precision; a checkpoint without /precision was written in 8
+  !! bytes. `what` is what is wrong, '' if nothing.
+  subroutine read_precision(pf, chk, what)
+    type(io_file_t), intent(inout) :: pf
+    type(checkpoint_t), intent(inout) :: chk
+    character(len=:), allocatable, intent(inout) :: what
+    integer :: nd, code(1)
+    integer(hsize_t) :: dims(3)
+
     chk%precision = 0
     code = 0
-    if (len(what) == 0) then
-      call io_dataset_dims(pf, 'precision', nd, dims)
-      if (nd == 1 .and. dims(1) == 1) then
-        call io_get_int(pf, 'precision', code)
-        chk%precision = code(1)
-        if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
-            chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
-                                                         ' (0, 1 or 2)'
-      else if (nd /= -1) then
-        what = 'a /precision that is not one integer'
-      end if
+    call io_dataset_dims(pf, 'precision', nd, dims)
+    if (nd == 1 .and. dims(1) == 1) then
+      call io_get_int(pf, 'precision', code)
+      chk%precision = code(1)
+      if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
+          chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
+                                                       ' (0, 1 or 2)'
+    else if (nd /= -1) then
+      what = 'a /precision that is not one integer'
     end if
-    ! the digests: both or none (a checkpoint written before they existed)
-    if (len(what) == 0) what = checksum_shapes()
-    ! the small datasets, whose counts the header gave and their shapes confirmed
-    if (len(what) == 0) then
-      allocate (chk%particles(NSTATE, chk%np), ep(ne, 3), codes(max(1, ints(9))))
-      if (chk%np > 0) call io_get_real(pf, 'particles', [integer(hsize_t) :: 0, 0], &
-                                       [integer(hsize_t) :: NSTATE, chk%np], chk%particles)
-      if (ne > 0) call io_get_real(pf, 'episodes', [integer(hsize_t) :: 0, 0], &
-                                   [integer(hsize_t) :: ne, 3], ep)
-      codes = 32
-      call io_dataset_dims(pf, 'given', nd, dims)
-      ! a checkpoint without digests may still hold its input
-      has_given = nd == 1 .and. dims(1) == max(1, ints(9))
-      if (has_given .and. .not. chk%checksums) call io_get_int(pf, 'given', codes)
-      if (chk%checksums) then
-        call io_get_int(pf, 'given', codes)
-        call io_get_real(pf, 'state_checksum', [0_hsize_t], [2_hsize_t], sums)
-        if (len(pf%failed) == 0 .and. &
-            any(sums /= state_digest(ints, rr, chk%particles, ep, codes, code(1)))) &
-          what = 'its state (/state_int, /state_real, /particles, /episodes, /given, '// &
-                 '/precision) does not match /state_checksum'
-      end if
-      if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_state()
-      chk%given = ''
-      if (has_given .and. len(pf%failed) == 0) chk%given = given_text(codes(:ints(9)))
-      chk%t_start = ep(:, 1)
-      chk%t_end = ep(:, 2)
-      chk%gap_min = ep(:, 3)
+  end subroutine read_precision
+
+  !> Whether the file has digests (chk%checksums), and what is wrong with their shapes;
+  !! `ngiven` is the length of /given its header gives.
+  function checksum_shapes(pf, chk, ngiven) result(p)
+    type(io_file_t), intent(inout) :: pf
+    type(checkpoint_t), intent(inout) :: chk
+    integer, intent(in) :: ngiven
+    character(len=:), allocatable :: p
+    integer :: nd_f, nd_s, nd_g
+    integer(hsize_t) :: dims_f(3), dims_s(3), dims_g(3)
+    p = ''
+    call io_dataset_dims(pf, 'f_checksum', nd_f, dims_f)
+    call io_dataset_dims(pf, 'state_checksum', nd_s, dims_s)
+    call io_dataset_dims(pf, 'given', nd_g, dims_g)
+    chk%checksums = nd_f /= -1 .or. nd_s /= -1
+    if (.not. chk%checksums) return
+    if (nd_f /= 2 .or. dims_f(1) /= 2 .or. dims_f(2) /= chk%ny) then
+      p = 'no /f_checksum of 2 x '//itoa(chk%ny)//' digests'
+    else if (nd_s /= 1 .or. dims_s(1) /= 2) then
+      p = 'no /state_checksum of 2 digests'
+    else if (nd_g /= 1 .or. dims_g(1) /= max(1, ngiven)) then
+      p = '/given does not hold the '//itoa(ngiven)//' characters of its header'
+    end if
+  end function checksum_shapes
+
+  !> The small datasets, whose counts the header gave and their shapes confirmed: the
+  !! particles and episodes into chk, checked against /state_checksum (when the file has
+  !! digests) and for values that are not finite. `what` is what is wrong, '' if nothing.
+  subroutine read_state(pf, chk, ints, rr, what)
+    type(io_file_t), intent(inout) :: pf
+    type(checkpoint_t), intent(inout) :: chk
+    integer, intent(in) :: ints(NINT)
+    real(wp), intent(in) :: rr(2)
+    character(len=:), allocatable, intent(inout) :: what
+    real(wp), allocatable :: ep(:, :)
+    integer, allocatable :: codes(:)
+    real(wp) :: sums(2)
+    integer :: ne, nd
+    integer(hsize_t) :: dims(3)
+    logical :: has_given
+
+    ne = ints(7)
+    allocate (chk%particles(NSTATE, chk%np), ep(ne, 3), codes(max(1, ints(9))))
+    if (chk%np > 0) call io_get_real(pf, 'particles', [integer(hsize_t) :: 0, 0], &
+                                     [integer(hsize_t) :: NSTATE, chk%np], chk%particles)
+    if (ne > 0) call io_get_real(pf, 'episodes', [integer(hsize_t) :: 0, 0], &
+                                 [integer(hsize_t) :: ne, 3], ep)
+    codes = 32
+    call io_dataset_dims(pf, 'given', nd, dims)
+    ! a checkpoint without digests may still hold its input
+    has_given = nd == 1 .and. dims(1) == max(1, ints(9))
+    if (has_given .and. .not. chk%checksums) call io_get_int(pf, 'given', codes)
+    if (chk%checksums) then
+      call io_get_int(pf, 'given', codes)
+      call io_get_real(pf, 'state_checksum', [0_hsize_t], [2_hsize_t], sums)
+      if (len(pf%failed) == 0 .and. &
+          any(sums /= state_digest(ints, rr, chk%particles, ep, codes, chk%precision))) &
+        what = 'its state (/state_int, /state_real, /particles, /episodes, /given, '// &
+               '/precision) does not match /state_checksum'
+    end if
+    if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_state(chk%particles, ep)
+    chk%given = ''
+    if (has_given .and. len(pf%failed) == 0) chk%given = given_text(codes(:ints(9)))
+    chk%t_start = ep(:, 1)
+    chk%t_end = ep(:, 2)
+    chk%gap_min = ep(:, 3)
+  end subroutine read_state
+
+  !> The rows y0+1..y0+nyl of /f into rows 1..nyl, columns 1..nx of f, checked against
+  !! /f_checksum (when the file has digests, `checksums`) and for values that are not finite;
+  !! refused (`what` set), f keeps what it held.
+  subroutine read_populations(pf, f, nx, nyl, y0, checksums, what)
+    type(io_file_t), intent(inout) :: pf
+    type(lattice_t), intent(inout) :: f
+    integer, intent(in) :: nx, nyl, y0
+    logical, intent(in) :: checksums
+    character(len=:), allocatable, intent(inout) :: what
+    real(wp), allocatable :: buf(:, :, :), rows(:, :)
+
+    allocate (buf(nx, nyl, 0:8))
+    call io_get_real(pf, 'f', [integer(hsize_t) :: 0, y0, 0], &
+                     [integer(hsize_t) :: nx, nyl, 9], buf)
+    if (checksums .and. len(pf%failed) == 0) then
+      allocate (rows(2, nyl))
+      call io_get_real(pf, 'f_checksum', [integer(hsize_t) :: 0, y0], &
+                       [integer(hsize_t) :: 2, nyl], rows)
+      if (len(pf%failed) == 0) what = row_mismatch(rows, row_digests(buf), y0)
+    end if
+    if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_population(buf, y0)
+    if (len(what) > 0) then
+      ! refused: f keeps what it held
+    else if (f%single) then
+      ! the values were 4-byte ones: the conversion back is exact
+      f%s(1:nx, 1:nyl, 0:8) = real(buf, sp)
     else
-      allocate (chk%particles(NSTATE, 0), chk%t_start(0), chk%t_end(0), chk%gap_min(0))
-      chk%given = ''
+      f%d(1:nx, 1:nyl, 0:8) = buf
     end if
-    ! the populations only when they are this run's; the caller says why not
-    if (len(what) == 0 .and. chk%nx == nx .and. chk%ny == ny .and. &
-        chk%precision == storage_code(f)) then
-      allocate (buf(nx, nyl, 0:8))
-      call io_get_real(pf, 'f', [integer(hsize_t) :: 0, y0, 0], &
-                       [integer(hsize_t) :: nx, nyl, 9], buf)
-      if (chk%checksums .and. len(pf%failed) == 0) then
-        allocate (rows(2, nyl))
-        call io_get_real(pf, 'f_checksum', [integer(hsize_t) :: 0, y0], &
-                         [integer(hsize_t) :: 2, nyl], rows)
-        if (len(pf%failed) == 0) what = row_mismatch(rows, row_digests(buf))
-      end if
-      if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_population(buf)
-      if (len(what) > 0) then
-        ! refused: f keeps what it held
-      else if (f%single) then
-        ! the values were 4-byte ones: the conversion back is exact
-        f%s(1:nx, 1:nyl, 0:8) = real(buf, sp)
-      else
-        f%d(1:nx, 1:nyl, 0:8) = buf
-      end if
+  end subroutine read_populations
+
+  !> The first particle or episode value that is not finite, '' if none.
+  function non_finite_state(particles, ep) result(p)
+    real(wp), intent(in) :: particles(:, :) !! (NSTATE, n)
+    real(wp), intent(in) :: ep(:, :)        !! (episodes, 3)
+    character(len=:), allocatable :: p
+    integer :: at(2)
+    p = ''
+    if (.not. all(ieee_is_finite(particles))) then
+      at = findloc(ieee_is_finite(particles), .false.)
+      p = '/particles holds the value '//non_finite_text(particles(at(1), at(2)))// &
+          ' for particle '//itoa(at(2))//' (quantity '//itoa(at(1))// &
+          ' of x, y, u, v, omega, fx, fy, torque, cx, cy)'
+    else if (.not. all(ieee_is_finite(ep))) then
+      p = '/episodes holds a value that is not finite'
     end if
-    if (len(what) == 0 .and. len(pf%failed) > 0) what = 'its datasets cannot be read'
-    call io_file_close(pf, close_err)
-    ! a problem seen on any rank is everyone's (the slabs read different rows): the message
-    ! of the lowest rank that saw one
-    call agree(what, comm)
-    if (foreign) then
-      err = 'restart file '''//path//''' is not a dktlbm checkpoint (no /state_int)'
-    else if (len(what) > 0) then
-      err = 'restart file '''//path//''' is damaged: '//what//'; use an earlier checkpoint'
-    else if (len(close_err) > 0) then
-      err = 'restart file '''//path//''' is damaged: '//close_err//'; use an earlier checkpoint'
-    end if
-  contains
-    !> What is wrong with the header, '' if nothing: the counts against sane bounds and the
-    !! datasets' shapes (so nothing is allocated from a wrong count).
-    function header_problem() result(p)
-      character(len=:), allocatable :: p
-      integer(int64) :: last
-      ! step + 1, which a step of huge(0) must not overflow
-      last = int(chk%step, int64) + 1
-      p = ''
-      if (chk%step < 0 .or. chk%samples < 0 .or. chk%samples > last) then
-        write (msg, '(a,i0,a,i0,a)') '/state_int holds step ', chk%step, ' and samples ', &
-          chk%samples, ' (0 <= samples <= step + 1)'
-        p = trim(msg)
-      else if (chk%shift < 0 .or. chk%shift > last) then
-        ! the window moves down only, and less than a row a step (run.particle_speed_limit <= 1)
-        write (msg, '(a,i0,a,i0,a)') '/state_int holds a window shift of ', chk%shift, &
-          ' rows at step ', chk%step, ' (0 to step + 1)'
-        p = trim(msg)
-      else if (chk%nx < 1 .or. chk%ny < 1) then
-        write (msg, '(a,i0,a,i0)') 'a lattice of ', chk%nx, ' x ', chk%ny
-        p = trim(msg)
-      else if (chk%np < 0 .or. chk%np > MAX_PARTICLES) then
-        write (msg, '(a,i0,a,i0,a)') 'a particle count of ', chk%np, ' (0 to ', MAX_PARTICLES, ')'
-        p = trim(msg)
-      else if (ne < 0 .or. ne > last) then
-        write (msg, '(a,i0,a)') 'an episode count of ', ne, ' (0 to step + 1)'
-        p = trim(msg)
-      else if (ints(8) /= 0 .and. ints(8) /= 1) then
-        p = 'an in-episode flag other than 0 or 1'
-      else if (ints(9) < 0) then
-        p = 'a negative length of /given'
-      else if (.not. (ieee_is_finite(chk%dx) .and. ieee_is_finite(chk%dt))) then
-        p = 'a lattice spacing or time step that is not a positive number'
-      else if (.not. (chk%dx > 0.0_wp .and. chk%dt > 0.0_wp)) then
-        p = 'a lattice spacing or time step that is not a positive number'
-      end if
-      if (len(p) > 0) return
-      call io_dataset_dims(pf, 'f', nd, dims)
-      if (nd /= 3 .or. any(dims /= [integer(hsize_t) :: chk%nx, chk%ny, 9])) then
-        p = '/f does not hold the '//itoa(chk%nx)//' x '//itoa(chk%ny)//' x 9 populations '// &
-            'of its header'
-        return
-      end if
-      call io_dataset_dims(pf, 'particles', nd, dims)
-      if (chk%np > 0 .and. (nd /= 2 .or. dims(1) /= NSTATE .or. dims(2) /= chk%np)) then
-        p = '/particles does not hold the '//itoa(chk%np)//' particles of its header'
-        return
-      end if
-      call io_dataset_dims(pf, 'episodes', nd, dims)
-      if (ne > 0 .and. (nd /= 2 .or. dims(1) /= ne .or. dims(2) /= 3)) then
-        p = '/episodes does not hold the '//itoa(ne)//' episodes of its header'
-        return
-      end if
-      if (len(pf%failed) > 0) p = 'its datasets cannot be read'
-    end function header_problem
+  end function non_finite_state
 
-    !> Whether the file has digests (chk%checksums), and what is wrong with their shapes.
-    function checksum_shapes() result(p)
-      character(len=:), allocatable :: p
-      integer :: nd_f, nd_s, nd_g
-      integer(hsize_t) :: dims_f(3), dims_s(3), dims_g(3)
-      p = ''
-      call io_dataset_dims(pf, 'f_checksum', nd_f, dims_f)
-      call io_dataset_dims(pf, 'state_checksum', nd_s, dims_s)
-      call io_dataset_dims(pf, 'given', nd_g, dims_g)
-      chk%checksums = nd_f /= -1 .or. nd_s /= -1
-      if (.not. chk%checksums) return
-      if (nd_f /= 2 .or. dims_f(1) /= 2 .or. dims_f(2) /= chk%ny) then
-        p = 'no /f_checksum of 2 x '//itoa(chk%ny)//' digests'
-      else if (nd_s /= 1 .or. dims_s(1) /= 2) then
-        p = 'no /state_checksum of 2 digests'
-      else if (nd_g /= 1 .or. dims_g(1) /= max(1, ints(9))) then
-        p = '/given does not hold the '//itoa(ints(9))//' characters of its header'
-      end if
-    end function checksum_shapes
+  !> The first population of this rank's rows (below them y0 rows) that is not finite, '' if
+  !! none.
+  function non_finite_population(b, y0) result(p)
+    real(wp), intent(in) :: b(:, :, 0:)
+    integer, intent(in) :: y0
+    character(len=:), allocatable :: p
+    integer :: at(3)
+    p = ''
+    if (all(ieee_is_finite(b))) return
+    at = findloc(ieee_is_finite(b), .false.)
+    p = '/f holds the value '//non_finite_text(b(at(1), at(2), at(3) - 1))//' at x = '// &
+        itoa(at(1))//', row '//itoa(y0 + at(2))//', population '//itoa(at(3) - 1)
+  end function non_finite_population
 
-    !> The first particle or episode value that is not finite, '' if none.
-    function non_finite_state() result(p)
-      character(len=:), allocatable :: p
-      integer :: at(2)
-      p = ''
-      if (.not. all(ieee_is_finite(chk%particles))) then
-        at = findloc(ieee_is_finite(chk%particles), .false.)
-        p = '/particles holds the value '//non_finite_text(chk%particles(at(1), at(2)))// &
-            ' for particle '//itoa(at(2))//' (quantity '//itoa(at(1))// &
-            ' of x, y, u, v, omega, fx, fy, torque, cx, cy)'
-      else if (.not. all(ieee_is_finite(ep))) then
-        p = '/episodes holds a value that is not finite'
-      end if
-    end function non_finite_state
-
-    !> The first population of this rank's rows that is not finite, '' if none.
-    function non_finite_population(b) result(p)
-      real(wp), intent(in) :: b(:, :, 0:)
-      character(len=:), allocatable :: p
-      integer :: at(3)
-      p = ''
-      if (all(ieee_is_finite(b))) return
-      at = findloc(ieee_is_finite(b), .false.)
-      p = '/f holds the value '//non_finite_text(b(at(1), at(2), at(3) - 1))//' at x = '// &
-          itoa(at(1))//', row '//itoa(y0 + at(2))//', population '//itoa(at(3) - 1)
-    end function non_finite_population
-
-    !> The first of this rank's rows whose digest differs from the stored one, '' if none.
-    function row_mismatch(stored, computed) result(p)
-      real(wp), intent(in) :: stored(:, :), computed(:, :)
-      character(len=:), allocatable :: p
-      integer :: j
-      p = ''
-      do j = 1, size(stored, 2)
-        if (all(stored(:, j) == computed(:, j))) cycle
-        p = '/f row '//itoa(y0 + j)//' does not match its digest in /f_checksum (a damaged '// &
-            'or altered value)'
-        return
-      end do
-    end function row_mismatch
-  end subroutine checkpoint_read
+  !> The first of this rank's rows (below them y0 rows) whose digest differs from the stored
+  !! one, '' if none.
+  function row_mismatch(stored, computed, y0) result(p)
+    real(wp), intent(in) :: stored(:, :), computed(:, :)
+    integer, intent(in) :: y0
+    character(len=:), allocatable :: p
+    integer :: j
+    p = ''
+    do j = 1, size(stored, 2)
+      if (all(stored(:, j) == computed(:, j))) cycle
+      p = '/f row '//itoa(y0 + j)//' does not match its digest in /f_checksum (a damaged '// &
+          'or altered value)'
+      return
+    end do
+  end function row_mismatch
 
   !> The text of the character codes of /given (as checkpoint_write made them with ichar); ''
   !! when a code is not one of a byte.

@@ -12,7 +12,7 @@ module dkt_restart_check
   use dkt_run_state, only: simulation_t
   use dkt_window, only: window_t, window_offset
   use dkt_config, only: config_output_dir
-  use dkt_io, only: io_file_t, io_file_open, io_file_close, io_get_real, io_dataset_dims
+  use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_get_real, io_dataset_dims
   use dkt_text, only: itoa, fmt_real
   implicit none
   private
