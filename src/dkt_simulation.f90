@@ -26,13 +26,12 @@ module dkt_simulation
   use dkt_window, only: window_init, window_offset, window_follow, window_escaped
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
-  use dkt_io, only: io_close
   use dkt_text, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
-  use dkt_output, only: output_fields, output_particles, output_close, output_final, &
-                        output_scheduled, output_mark_finished
+  use dkt_output, only: output_t, output_initial, output_close, output_final, &
+                        output_scheduled, output_mark_finished, output_free
   use dkt_report, only: progress_t, report_start, report_progress, report_performance
-  use dkt_checkpoint_policy, only: checkpoint_clock_t, checkpoint_start, checkpoint_due, &
+  use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_start, checkpoint_due, &
                                    checkpoint_finish, checkpoint_final, checkpoint_stop_message
   implicit none
   private
@@ -211,21 +210,19 @@ contains
   end subroutine initialise
 
   !> The time loop.
-  subroutine simulation_run(sim)
+  subroutine simulation_run(sim, out, chk)
     type(simulation_t), intent(inout) :: sim
+    type(output_t), intent(inout) :: out
+    type(checkpoint_state_t), intent(inout), asynchronous :: chk
     type(progress_t) :: prog
-    type(checkpoint_clock_t), asynchronous :: clock
     integer :: n
     real(wp) :: t, mach, y0
     logical :: last, stop
     character(len=:), allocatable :: failure, placed, fast
 
     associate (lp => sim%lp, cfg => sim%cfg)
-      if (.not. sim%restarted) then
-        if (lp%field_every > 0) call output_fields(sim, 0)
-        if (sim%particles_on) call output_particles(sim, 0)
-      end if
-      call checkpoint_start(clock)
+      call output_initial(out, sim)
+      call checkpoint_start(chk)
       call report_start(prog, sim%step + 1)
       failure = ''
       placed = ''
@@ -264,7 +261,7 @@ contains
           failure = fast
           if (len(failure) > 0) exit
         end if
-        if (.not. last) call output_scheduled(sim, n)
+        if (.not. last) call output_scheduled(out, sim, n)
         if (cfg%run%progress_every > 0) then
           if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
@@ -276,39 +273,39 @@ contains
             call report_progress(sim, prog, n, mach)
           end if
         end if
-        call checkpoint_due(sim, clock, last, stop)
+        call checkpoint_due(chk, out, sim, last, stop)
         if (stop .or. last) exit
       end do
-      call checkpoint_finish(clock)
+      call checkpoint_finish(chk)
       n = sim%step
       if (len(failure) > 0) then
         ! every rank saw the same failure: write the last step's state (what went wrong is
         ! in it), close the output, then stop with the message
         if (failure == placed) then
-          sim%stop_reason = 'particle: '//failure
+          out%stop_reason = 'particle: '//failure
         else
-          sim%stop_reason = 'guard: '//failure
+          out%stop_reason = 'guard: '//failure
         end if
         call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
                       '; the output holds the run up to this step')
-        call output_close(sim)
+        call output_close(out, sim)
         call fatal_all(failure, EXIT_RUNTIME)
       end if
       call report_performance(sim, prog, n)
-      if (sim%interrupted) then
-        call checkpoint_stop_message(sim, clock)
+      if (chk%interrupted) then
+        call checkpoint_stop_message(chk, sim)
         ! the output up to this step; a resumed run cuts back what the checkpoint has not
-        call output_close(sim)
+        call output_close(out, sim)
         return
       end if
-      sim%stop_reason = 'finished'
+      out%stop_reason = 'finished'
       if (len(sim%stopped_early) > 0) then
-        sim%stop_reason = 'window_escape'
+        out%stop_reason = 'window_escape'
         call warn(sim%stopped_early)
       end if
-      call output_final(sim)
-      call checkpoint_final(sim)
-      call output_close(sim)
+      call output_final(out, sim)
+      call checkpoint_final(chk, out, sim)
+      call output_close(out, sim)
       call output_mark_finished(sim)
     end associate
   end subroutine simulation_run
@@ -579,10 +576,6 @@ contains
 
   subroutine simulation_finish(sim)
     type(simulation_t), intent(inout) :: sim
-    if (sim%output_open) call io_close(sim%io)
-    sim%output_open = .false.
-    if (sim%csv_open) close (sim%csv_unit)
-    sim%csv_open = .false.
     call log_close()
     call lattice_free(sim%f)
     if (.not. sim%in_place) call lattice_free(sim%f_next)

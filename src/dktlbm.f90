@@ -11,9 +11,10 @@ program dktlbm
                         config_check_text
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
   use dkt_report, only: report_summary
-  use dkt_checkpoint_policy, only: checkpoint_resume
+  use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_resume
   use dkt_config_restart, only: restart_changes_problem
-  use dkt_output, only: output_open, output_check_existing, output_check_dir
+  use dkt_output, only: output_t, output_open, output_check_existing, output_check_dir, &
+                        output_free
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -21,6 +22,8 @@ program dktlbm
   type(config_t) :: cfg
   type(lattice_params_t) :: lp
   type(simulation_t) :: sim
+  type(output_t) :: out
+  type(checkpoint_state_t), asynchronous :: chk
   character(len=:), allocatable :: err, text, warnings
   integer :: rank, status
 
@@ -61,14 +64,15 @@ program dktlbm
   ! what the run would refuse
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
   call output_check_dir(sim)
-  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
+  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(chk, out, sim, cli%restart)
   call report_summary(sim)
   if (cli%check) then
-    if (len(cli%restart) == 0) call output_check_existing(sim)
+    if (len(cli%restart) == 0) call output_check_existing(out, sim)
   else
-    call output_open(sim)
-    call simulation_run(sim)
+    call output_open(out, sim)
+    call simulation_run(sim, out, chk)
   end if
+  call output_free(out)
   call simulation_finish(sim)
   call MPI_Finalize()
 
