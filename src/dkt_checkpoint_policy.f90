@@ -19,12 +19,13 @@ module dkt_checkpoint_policy
   use dkt_restart_check, only: restart_problem
   use dkt_config_restart, only: restart_input_check
   use dkt_store, only: lattice_precision_name
-  use dkt_output, only: output_t, output_fail, output_resume
-  use dkt_io, only: io_flush
+  use dkt_output, only: output_t, output_fail, output_resume, output_set_stop_reason, &
+                        output_flush, output_samples
   implicit none
   private
   public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
-            checkpoint_final, checkpoint_stop_message, checkpoint_resume
+            checkpoint_final, checkpoint_stop_message, checkpoint_resume, &
+            checkpoint_interrupted
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
 
@@ -39,6 +40,7 @@ module dkt_checkpoint_policy
   !! Bit 0: a signal arrived; bit 1: run.checkpoint_wall passed; bit 2: run.wall_limit passed;
   !! bits SIGNAL_SHIFT + s: signal s arrived (dkt_signals signal_mask).
   type :: checkpoint_state_t
+    private
     integer :: flags_out = 0, flags_in = 0 !! buffers of the flag reduction in flight
     type(MPI_Request) :: request
     logical :: pending = .false.
@@ -85,10 +87,10 @@ contains
         ! the signals any rank caught, so that rank 0's log names one even when only
         ! another rank was signalled
         state%reason = 'on signal '//signal_name(ishft(flags, -SIGNAL_SHIFT))
-        out%stop_reason = 'signal'
+        call output_set_stop_reason(out, 'signal')
       else
         state%reason = 'at run.wall_limit'
-        out%stop_reason = 'wall_limit'
+        call output_set_stop_reason(out, 'wall_limit')
       end if
       stop = .true.
       return
@@ -137,6 +139,12 @@ contains
                                                     mod(sim%step, sim%lp%series_every) /= 0))
     end if
   end subroutine checkpoint_final
+
+  !> Whether the run stopped on a signal or at run.wall_limit, to be resumed.
+  pure logical function checkpoint_interrupted(state)
+    type(checkpoint_state_t), intent(in) :: state
+    checkpoint_interrupted = state%interrupted
+  end function checkpoint_interrupted
 
   !> The log lines of a run stopped to be resumed: why, where, and the command that resumes.
   subroutine checkpoint_stop_message(state, sim)
@@ -237,8 +245,8 @@ contains
     path = checkpoint_name(dir, sim%cfg%name, sim%step)
     chk%step = sim%step
     chk%shift = sim%win%shift
-    chk%samples = out%samples
-    if (present(unscheduled)) chk%samples = out%samples - unscheduled
+    chk%samples = output_samples(out)
+    if (present(unscheduled)) chk%samples = output_samples(out) - unscheduled
     chk%nx = sim%lp%nx
     chk%ny = sim%lp%ny
     chk%dx = sim%lp%dx
@@ -259,7 +267,7 @@ contains
     end if
     ! the run file first holds every sample the checkpoint counts, so that a run killed later
     ! resumes onto complete series (samples are held in memory between flushes, dkt_io)
-    if (out%file_open) call io_flush(out%io)
+    call output_flush(out)
     call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
                           sim%cfg%given, err)
     if (len(err) > 0) then

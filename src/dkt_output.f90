@@ -14,7 +14,7 @@ module dkt_output
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute, io_reopen
+                    io_write_table, io_write_attribute, io_reopen, io_flush
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
@@ -25,7 +25,8 @@ module dkt_output
   private
   public :: output_t, output_open, output_check_existing, output_check_dir, output_fields, &
             output_particles, output_pair_report, output_close, output_fail, output_final, &
-            output_scheduled, output_mark_finished, output_initial, output_resume, output_free
+            output_scheduled, output_mark_finished, output_initial, output_resume, output_free, &
+            output_set_stop_reason, output_flush, output_samples
 
   !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
   !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
@@ -48,8 +49,10 @@ module dkt_output
                                                     'g/s^2    ', 'g cm/s^2 ']
 
   !> The run's output: the run file and the pair's CSV file, what of them is written, and
-  !! why the run ended. Owned by this module; the loop and the checkpoints hand it in.
+  !! why the run ended. Owned by this module (its components are private): the loop and the
+  !! checkpoints hand it in.
   type :: output_t
+    private
     type(io_t) :: io
     logical :: file_open = .false.  !! the run file is open
     integer :: csv_unit = 0         !! the diagnostics CSV file (rank 0, when the pair is on)
@@ -91,6 +94,27 @@ contains
     if (sim%lp%field_every > 0) call output_fields(out, sim, 0)
     if (sim%particles_on) call output_particles(out, sim, 0)
   end subroutine output_initial
+
+  !> Record why the run ends ('finished', 'signal', 'guard: <message>', ...), stored as /run
+  !! stop_reason when the output is closed.
+  subroutine output_set_stop_reason(out, reason)
+    type(output_t), intent(inout) :: out
+    character(len=*), intent(in) :: reason
+    out%stop_reason = reason
+  end subroutine output_set_stop_reason
+
+  !> Write the samples held in memory (dkt_io keeps them between flushes) to the open run file.
+  subroutine output_flush(out)
+    type(output_t), intent(inout) :: out
+    if (out%file_open) call io_flush(out%io)
+  end subroutine output_flush
+
+  !> The samples of the /particles series written so far (a resumed run counts those of the
+  !! run it continues).
+  pure integer function output_samples(out)
+    type(output_t), intent(in) :: out
+    output_samples = out%samples
+  end function output_samples
 
   !> Close whatever of the output is still open, without writing to it.
   subroutine output_free(out)
