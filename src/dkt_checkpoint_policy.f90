@@ -15,71 +15,82 @@ module dkt_checkpoint_policy
   use dkt_log, only: log_line
   use dkt_filesystem, only: remove_file, write_marker
   use dkt_text, only: itoa
-  use dkt_run_state, only: simulation_t, path_t
+  use dkt_run_state, only: simulation_t
   use dkt_restart_check, only: restart_problem
   use dkt_config_restart, only: restart_input_check
   use dkt_store, only: lattice_precision_name
-  use dkt_output, only: output_fail
-  use dkt_io, only: io_flush
+  use dkt_output, only: output_t, output_fail, output_resume, output_set_stop_reason, &
+                        output_flush, output_samples
   implicit none
   private
-  public :: checkpoint_clock_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
-            checkpoint_final, checkpoint_stop_message, checkpoint_resume
+  public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
+            checkpoint_final, checkpoint_stop_message, checkpoint_resume, &
+            checkpoint_interrupted
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
 
-  !> The ranks agree on the signal and clock flags with a reduction started one step earlier,
-  !! so that no step waits for it; every rank acts on the same flags at the same step.
+  !> a file name, as an element of a list of names of different lengths
+  type :: path_t
+    character(len=:), allocatable :: s
+  end type path_t
+
+  !> The checkpoints' state, owned by this module: the clocks, the flags and the checkpoints
+  !! written. The ranks agree on the signal and clock flags with a reduction started one step
+  !! earlier, so that no step waits for it; every rank acts on the same flags at the same step.
   !! Bit 0: a signal arrived; bit 1: run.checkpoint_wall passed; bit 2: run.wall_limit passed;
   !! bits SIGNAL_SHIFT + s: signal s arrived (dkt_signals signal_mask).
-  type :: checkpoint_clock_t
+  type :: checkpoint_state_t
+    private
     integer :: flags_out = 0, flags_in = 0 !! buffers of the flag reduction in flight
     type(MPI_Request) :: request
     logical :: pending = .false.
     real(wp) :: t_start = 0.0_wp       !! wall time at the first step (run.wall_limit)
     real(wp) :: t_checkpoint = 0.0_wp  !! wall time of the last checkpoint (checkpoint_wall)
     character(len=:), allocatable :: reason !! why the run stopped to be resumed, for the log
-  end type checkpoint_clock_t
+    logical :: interrupted = .false. !! stopped on a signal or the wall limit, to be resumed
+    type(path_t), allocatable :: checkpoints(:)  !! written by this run (and the one resumed)
+  end type checkpoint_state_t
 
 contains
 
   !> Install the signal handlers and start the clocks, before the first step.
-  subroutine checkpoint_start(clock)
-    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
+  subroutine checkpoint_start(state)
+    type(checkpoint_state_t), intent(inout), asynchronous :: state
     call signals_install()
-    clock%t_start = MPI_Wtime()
-    clock%t_checkpoint = clock%t_start
-    clock%pending = .false.
-    clock%reason = ''
+    state%t_start = MPI_Wtime()
+    state%t_checkpoint = state%t_start
+    state%pending = .false.
+    state%reason = ''
   end subroutine checkpoint_start
 
   !> After each step: write the checkpoints that are due. `stop` = .true. when the run wrote
   !! a checkpoint on a signal or at the wall limit and ends here to be resumed. At the `last`
   !! step nothing is written (a checkpoint at the last step follows the final output).
-  subroutine checkpoint_due(sim, clock, last, stop)
-    type(simulation_t), intent(inout) :: sim
-    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
+  subroutine checkpoint_due(state, out, sim, last, stop)
+    type(checkpoint_state_t), intent(inout), asynchronous :: state
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     logical, intent(in) :: last
     logical, intent(out) :: stop
     integer :: flags
     stop = .false.
     flags = 0
-    if (clock%pending) then
-      call MPI_Wait(clock%request, MPI_STATUS_IGNORE)
-      flags = clock%flags_in
-      clock%pending = .false.
+    if (state%pending) then
+      call MPI_Wait(state%request, MPI_STATUS_IGNORE)
+      flags = state%flags_in
+      state%pending = .false.
     end if
     if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
-      call checkpoint_save(sim)
-      sim%interrupted = .true.
+      call checkpoint_save(state, out, sim)
+      state%interrupted = .true.
       if (btest(flags, 0)) then
         ! the signals any rank caught, so that rank 0's log names one even when only
         ! another rank was signalled
-        clock%reason = 'on signal '//signal_name(ishft(flags, -SIGNAL_SHIFT))
-        sim%stop_reason = 'signal'
+        state%reason = 'on signal '//signal_name(ishft(flags, -SIGNAL_SHIFT))
+        call output_set_stop_reason(out, 'signal')
       else
-        clock%reason = 'at run.wall_limit'
-        sim%stop_reason = 'wall_limit'
+        state%reason = 'at run.wall_limit'
+        call output_set_stop_reason(out, 'wall_limit')
       end if
       stop = .true.
       return
@@ -87,54 +98,62 @@ contains
     if (last) return
     if (btest(flags, 1) .or. sim%cfg%run%checkpoint_every > 0) then
       if (btest(flags, 1) .or. mod(sim%step, max(1, sim%cfg%run%checkpoint_every)) == 0) then
-        call checkpoint_save(sim)
-        clock%t_checkpoint = MPI_Wtime()
+        call checkpoint_save(state, out, sim)
+        state%t_checkpoint = MPI_Wtime()
       end if
     end if
-    clock%flags_out = 0
-    if (signal_mask() /= 0) clock%flags_out = ior(ibset(clock%flags_out, 0), &
+    state%flags_out = 0
+    if (signal_mask() /= 0) state%flags_out = ior(ibset(state%flags_out, 0), &
                                                   ishft(signal_mask(), SIGNAL_SHIFT))
     if (sim%dom%rank == 0) then
       if (sim%cfg%run%checkpoint_wall > 0.0_wp .and. &
-          MPI_Wtime() - clock%t_checkpoint >= sim%cfg%run%checkpoint_wall) &
-        clock%flags_out = ibset(clock%flags_out, 1)
+          MPI_Wtime() - state%t_checkpoint >= sim%cfg%run%checkpoint_wall) &
+        state%flags_out = ibset(state%flags_out, 1)
       if (sim%cfg%run%wall_limit > 0.0_wp .and. &
-          MPI_Wtime() - clock%t_start >= sim%cfg%run%wall_limit) &
-        clock%flags_out = ibset(clock%flags_out, 2)
+          MPI_Wtime() - state%t_start >= sim%cfg%run%wall_limit) &
+        state%flags_out = ibset(state%flags_out, 2)
     end if
-    call MPI_Iallreduce(clock%flags_out, clock%flags_in, 1, MPI_INTEGER, MPI_BOR, &
-                        sim%dom%comm, clock%request)
-    clock%pending = .true.
+    call MPI_Iallreduce(state%flags_out, state%flags_in, 1, MPI_INTEGER, MPI_BOR, &
+                        sim%dom%comm, state%request)
+    state%pending = .true.
   end subroutine checkpoint_due
 
   !> After the loop: complete the flag reduction still in flight (a guard stop leaves the one
   !! of the step before).
-  subroutine checkpoint_finish(clock)
-    type(checkpoint_clock_t), intent(inout), asynchronous :: clock
-    if (clock%pending) call MPI_Wait(clock%request, MPI_STATUS_IGNORE)
-    clock%pending = .false.
+  subroutine checkpoint_finish(state)
+    type(checkpoint_state_t), intent(inout), asynchronous :: state
+    if (state%pending) call MPI_Wait(state%request, MPI_STATUS_IGNORE)
+    state%pending = .false.
   end subroutine checkpoint_finish
 
   !> At the end of a finished run: a checkpoint at the last step lets the run be extended (a
   !! larger run.t_end); the final sample counts only when it is on the series schedule, as in a
   !! longer run.
-  subroutine checkpoint_final(sim)
-    type(simulation_t), intent(inout) :: sim
+  subroutine checkpoint_final(state, out, sim)
+    type(checkpoint_state_t), intent(inout) :: state
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     if (sim%cfg%run%checkpoint_every > 0) then
       if (mod(sim%step, sim%cfg%run%checkpoint_every) == 0) &
-        call checkpoint_save(sim, merge(1, 0, sim%particles_on .and. &
-                                        mod(sim%step, sim%lp%series_every) /= 0))
+        call checkpoint_save(state, out, sim, merge(1, 0, sim%particles_on .and. &
+                                                    mod(sim%step, sim%lp%series_every) /= 0))
     end if
   end subroutine checkpoint_final
 
+  !> Whether the run stopped on a signal or at run.wall_limit, to be resumed.
+  pure logical function checkpoint_interrupted(state)
+    type(checkpoint_state_t), intent(in) :: state
+    checkpoint_interrupted = state%interrupted
+  end function checkpoint_interrupted
+
   !> The log lines of a run stopped to be resumed: why, where, and the command that resumes.
-  subroutine checkpoint_stop_message(sim, clock)
+  subroutine checkpoint_stop_message(state, sim)
+    type(checkpoint_state_t), intent(in) :: state
     type(simulation_t), intent(in) :: sim
-    type(checkpoint_clock_t), intent(in) :: clock
-    call log_line('stopped '//clock%reason//' after step '//itoa(sim%step)//' of '// &
+    call log_line('stopped '//state%reason//' after step '//itoa(sim%step)//' of '// &
                   itoa(sim%lp%steps)//'; checkpoint '// &
-                  sim%checkpoints(size(sim%checkpoints))%s//' written. Resume with:')
-    call log_line('  '//resume_command(sim%checkpoints(size(sim%checkpoints))%s, &
+                  state%checkpoints(size(state%checkpoints))%s//' written. Resume with:')
+    call log_line('  '//resume_command(state%checkpoints(size(state%checkpoints))%s, &
                                        sim%dom%nranks))
   end subroutine checkpoint_stop_message
 
@@ -142,11 +161,13 @@ contains
   !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
   !! another lattice or time step, or with another number of particles, stops every rank, as
   !! does an input that changes the checkpoint's physics beyond run.restart_changes.
-  subroutine checkpoint_resume(sim, path)
+  subroutine checkpoint_resume(state, out, sim, path)
+    type(checkpoint_state_t), intent(inout) :: state
+    type(output_t), intent(inout) :: out
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
     type(checkpoint_t) :: chk
-    character(len=:), allocatable :: err
+    character(len=:), allocatable :: err, changes
     character(len=512) :: msg
     integer :: k
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
@@ -178,7 +199,7 @@ contains
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
     ! the physics of its input (a lattice of other sizes was refused above with its sizes)
-    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
+    call restart_input_check(sim%cfg, chk%given, path, changes)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
@@ -189,7 +210,6 @@ contains
                 'version): its values were checked against their bounds, but a damaged '// &
                 'byte within them would go unnoticed')
     sim%step = chk%step
-    sim%samples = chk%samples
     sim%win%shift = chk%shift
     do k = 1, size(chk%particles, 2)
       associate (p => sim%parts%p(k), v => chk%particles(:, k))
@@ -205,16 +225,17 @@ contains
       sim%pair%t_end = chk%t_end
       sim%pair%gap_min = chk%gap_min
     end if
-    sim%restarted = .true.
-    sim%restart_from = path
-    sim%checkpoints = [path_t(path)]
+    call output_resume(out, path, chk%samples, changes)
+    state%checkpoints = [path_t(path)]
   end subroutine checkpoint_resume
 
   !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
   !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint
   !! written before stays as it was.
-  subroutine checkpoint_save(sim, unscheduled)
-    type(simulation_t), intent(inout) :: sim
+  subroutine checkpoint_save(state, out, sim, unscheduled)
+    type(checkpoint_state_t), intent(inout) :: state
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     integer, intent(in), optional :: unscheduled !! samples written off the series schedule
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: dir, path, err, before
@@ -224,8 +245,8 @@ contains
     path = checkpoint_name(dir, sim%cfg%name, sim%step)
     chk%step = sim%step
     chk%shift = sim%win%shift
-    chk%samples = sim%samples
-    if (present(unscheduled)) chk%samples = sim%samples - unscheduled
+    chk%samples = output_samples(out)
+    if (present(unscheduled)) chk%samples = output_samples(out) - unscheduled
     chk%nx = sim%lp%nx
     chk%ny = sim%lp%ny
     chk%dx = sim%lp%dx
@@ -246,28 +267,28 @@ contains
     end if
     ! the run file first holds every sample the checkpoint counts, so that a run killed later
     ! resumes onto complete series (samples are held in memory between flushes, dkt_io)
-    if (sim%output_open) call io_flush(sim%io)
+    call output_flush(out)
     call checkpoint_write(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%nyl, sim%dom%y0, chk, &
                           sim%cfg%given, err)
     if (len(err) > 0) then
       before = 'none'
-      if (allocated(sim%checkpoints)) then
-        if (size(sim%checkpoints) > 0) before = sim%checkpoints(size(sim%checkpoints))%s
+      if (allocated(state%checkpoints)) then
+        if (size(state%checkpoints) > 0) before = state%checkpoints(size(state%checkpoints))%s
       end if
-      call output_fail(sim, err//'. The last checkpoint written is '//before)
+      call output_fail(out, sim, err//'. The last checkpoint written is '//before)
     end if
-    if (.not. allocated(sim%checkpoints)) allocate (sim%checkpoints(0))
-    sim%checkpoints = [sim%checkpoints, path_t(path)]
+    if (.not. allocated(state%checkpoints)) allocate (state%checkpoints(0))
+    state%checkpoints = [state%checkpoints, path_t(path)]
     ok = .true.
     if (sim%dom%rank == 0) ok = write_marker(dir//'/'//sim%cfg%name//'.checkpoint', path)
     call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
     ! batch scripts resume from the checkpoint the marker names: a stale one would lose steps
-    if (.not. ok) call output_fail(sim, 'cannot write the marker file '''//dir//'/'// &
+    if (.not. ok) call output_fail(out, sim, 'cannot write the marker file '''//dir//'/'// &
                                    sim%cfg%name//'.checkpoint'' naming the checkpoint '// &
                                    path//'; check that output.dir is writable')
-    do while (size(sim%checkpoints) > sim%cfg%run%checkpoint_keep)
-      if (sim%dom%rank == 0) call remove_file(sim%checkpoints(1)%s)
-      sim%checkpoints = sim%checkpoints(2:)
+    do while (size(state%checkpoints) > sim%cfg%run%checkpoint_keep)
+      if (sim%dom%rank == 0) call remove_file(state%checkpoints(1)%s)
+      state%checkpoints = state%checkpoints(2:)
     end do
     call log_line('checkpoint '//path)
   end subroutine checkpoint_save

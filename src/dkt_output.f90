@@ -14,7 +14,7 @@ module dkt_output
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute, io_reopen
+                    io_write_table, io_write_attribute, io_reopen, io_flush
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
@@ -23,9 +23,10 @@ module dkt_output
   use dkt_run_state, only: simulation_t
   implicit none
   private
-  public :: output_open, output_check_existing, output_check_dir, output_fields, output_particles, &
-            output_pair_report, output_close, output_fail, output_final, output_scheduled, &
-            output_mark_finished
+  public :: output_t, output_open, output_check_existing, output_check_dir, output_fields, &
+            output_particles, output_pair_report, output_close, output_fail, output_final, &
+            output_scheduled, output_mark_finished, output_initial, output_resume, output_free, &
+            output_set_stop_reason, output_flush, output_samples
 
   !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
   !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
@@ -47,12 +48,88 @@ module dkt_output
                                                     'cm/s     ', '1/s      ', 'g/s^2    ', &
                                                     'g/s^2    ', 'g cm/s^2 ']
 
+  !> The run's output: the run file and the pair's CSV file, what of them is written, and
+  !! why the run ended. Owned by this module (its components are private): the loop and the
+  !! checkpoints hand it in.
+  type :: output_t
+    private
+    type(io_t) :: io
+    logical :: file_open = .false.  !! the run file is open
+    integer :: csv_unit = 0         !! the diagnostics CSV file (rank 0, when the pair is on)
+    logical :: csv_open = .false.
+    integer :: samples = 0          !! samples of the /particles series written
+    integer :: fields_step = -1     !! the step of the last field snapshot written
+    integer :: series_step = -1     !! the step of the last /particles sample written
+    logical :: reported = .false.   !! the pair's pattern and episodes are written
+    !> why the run ended, stored as /run stop_reason when the output is closed: 'finished',
+    !! 'window_escape', 'signal', 'wall_limit', 'guard: <message>' or 'error: <message>'
+    character(len=:), allocatable :: stop_reason
+    logical :: resumed = .false.    !! the output continues that of a run resumed from a checkpoint
+    character(len=:), allocatable :: restart_from !! the checkpoint it resumed from
+    !> the changes of the input run.restart_changes allowed on resuming, for the run file:
+    !! 'group.key old -> new; ...', '' if none
+    character(len=:), allocatable :: restart_changes
+  end type output_t
+
 contains
+
+  !> Continue the output of the run that wrote the checkpoint `path` after `samples` samples
+  !! of the /particles series, recording the input changes `changes` when the output opens.
+  subroutine output_resume(out, path, samples, changes)
+    type(output_t), intent(inout) :: out
+    character(len=*), intent(in) :: path, changes
+    integer, intent(in) :: samples
+    out%resumed = .true.
+    out%restart_from = path
+    out%samples = samples
+    out%restart_changes = changes
+  end subroutine output_resume
+
+  !> The output at step 0 of a run that does not resume: the fields (when they are written
+  !! during the run) and the first particle sample.
+  subroutine output_initial(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    if (out%resumed) return
+    if (sim%lp%field_every > 0) call output_fields(out, sim, 0)
+    if (sim%particles_on) call output_particles(out, sim, 0)
+  end subroutine output_initial
+
+  !> Record why the run ends ('finished', 'signal', 'guard: <message>', ...), stored as /run
+  !! stop_reason when the output is closed.
+  subroutine output_set_stop_reason(out, reason)
+    type(output_t), intent(inout) :: out
+    character(len=*), intent(in) :: reason
+    out%stop_reason = reason
+  end subroutine output_set_stop_reason
+
+  !> Write the samples held in memory (dkt_io keeps them between flushes) to the open run file.
+  subroutine output_flush(out)
+    type(output_t), intent(inout) :: out
+    if (out%file_open) call io_flush(out%io)
+  end subroutine output_flush
+
+  !> The samples of the /particles series written so far (a resumed run counts those of the
+  !! run it continues).
+  pure integer function output_samples(out)
+    type(output_t), intent(in) :: out
+    output_samples = out%samples
+  end function output_samples
+
+  !> Close whatever of the output is still open, without writing to it.
+  subroutine output_free(out)
+    type(output_t), intent(inout) :: out
+    if (out%file_open) call io_close(out%io)
+    out%file_open = .false.
+    if (out%csv_open) close (out%csv_unit)
+    out%csv_open = .false.
+  end subroutine output_free
 
   !> Create the output directory and file, and store the run's metadata. Called only after
   !! every input check passed, so a bad input writes nothing.
-  subroutine output_open(sim)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_open(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     character(len=:), allocatable :: dir, err, nml
     character(len=256) :: msg
     integer :: ios
@@ -60,7 +137,7 @@ contains
     real(wp) :: pvalues(9), s(0:8)
     logical :: ok
 
-    sim%stop_reason = 'running'
+    out%stop_reason = 'running'
     dir = config_output_dir(sim%cfg)
     err = ''
     if (sim%dom%rank == 0) call make_directories(dir, err)
@@ -69,35 +146,35 @@ contains
     ! only rank 0 knows the reason; it is the rank that prints
     if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
                                  err//'; choose a writable output.dir')
-    if (sim%restarted) then
+    if (out%resumed) then
       ! the output of the run that wrote the checkpoint continues, cut back to its step
-      call io_reopen(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
-                     sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, sim%samples, &
+      call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
+                     sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, out%samples, &
                      [character(len=11) :: 'particles', 'diagnostics'], &
                      [sim%particles_on, sim%pair_on], &
                      sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
                      [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
-                                       sim%restart_from//': '//err)
-      sim%io%compress = sim%cfg%output%compress
-      sim%output_open = .true.
+                                       out%restart_from//': '//err)
+      out%io%compress = sim%cfg%output%compress
+      out%file_open = .true.
       call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
       if (len(err) > 0) call fatal_local(err)
       if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
                                                                '_diagnostics.csv')
       if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
-      call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
-      if (allocated(sim%restart_changes)) call record_restart_changes(sim)
+      call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+      if (allocated(out%restart_changes)) call record_restart_changes(out, sim)
       return
     end if
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
     ! that a file that appears meanwhile is not clobbered)
-    call output_check_existing(sim)
-    call io_open(sim%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
+    call output_check_existing(out, sim)
+    call io_open(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
-    sim%io%compress = sim%cfg%output%compress
-    sim%output_open = .true.
+    out%io%compress = sim%cfg%output%compress
+    out%file_open = .true.
     call log_open(dir//'/'//sim%cfg%name//'.log', err)
     if (len(err) > 0) call fatal_local(err)
     if (sim%dom%rank == 0) then
@@ -117,23 +194,23 @@ contains
     else
       call config_to_namelist(sim%cfg, nml)
     end if
-    call io_write_run(sim%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
+    call io_write_run(out%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
                       compiler_version(), dkt_build_flags, pnames, pvalues, &
                       [character(len=2) :: 'cm', 's', '1', '1', '1', '1', '1', '1', '1'])
-    call io_write_attribute(sim%io, '/run', 'nx', sim%lp%nx)
-    call io_write_attribute(sim%io, '/run', 'ny', sim%lp%ny)
-    call io_write_attribute(sim%io, '/run', 'steps', sim%lp%steps)
+    call io_write_attribute(out%io, '/run', 'nx', sim%lp%nx)
+    call io_write_attribute(out%io, '/run', 'ny', sim%lp%ny)
+    call io_write_attribute(out%io, '/run', 'steps', sim%lp%steps)
     call write_derived(sim)
     ! replaced when the run ends; a file that still says 'running' is of a run that is going
     ! on or was killed
-    call io_write_attribute(sim%io, '/run', 'stop_reason', 'running')
+    call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
     if (sim%pair_on .and. sim%dom%rank == 0) then
       ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
-      open (newunit=sim%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
+      open (newunit=out%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &
             status='replace', action='write', iostat=ios, iomsg=msg)
       if (ios /= 0) call fatal_local(trim(msg))
-      sim%csv_open = .true.
-      write (sim%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
+      out%csv_open = .true.
+      write (out%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
         'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
     end if
   contains
@@ -145,7 +222,7 @@ contains
     !! kiss_release), in spacings (kiss_enter_cells, kiss_release_cells) and in D_1
     !! (kiss_enter_d1, kiss_release_d1).
     subroutine write_derived(sim)
-      type(simulation_t), intent(inout) :: sim
+      type(simulation_t), intent(in) :: sim
       real(wp) :: enter, release
       associate (c => sim%cfg)
         call put('t_ref', c%run%t_ref, 's')
@@ -172,7 +249,7 @@ contains
     subroutine put(name, value, unit)
       character(len=*), intent(in) :: name, unit
       real(wp), intent(in) :: value
-      call write_quantity(sim%io, '/run', name, value, unit)
+      call write_quantity(out%io, '/run', name, value, unit)
     end subroutine put
 
     !> Keep the header and the first `samples` rows of the CSV file, then append to it.
@@ -180,22 +257,22 @@ contains
       character(len=*), intent(in) :: path
       character(len=2048), allocatable :: rows(:)
       integer :: u, k
-      allocate (rows(sim%samples + 1))
+      allocate (rows(out%samples + 1))
       open (newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
       if (ios /= 0) call fatal_local('--restart: cannot read '//path//': '//trim(msg))
-      do k = 1, sim%samples + 1
+      do k = 1, out%samples + 1
         read (u, '(a)', iostat=ios) rows(k)
         if (ios /= 0) call fatal_local('--restart: '//path//' has fewer rows than the '// &
                                        'checkpoint''s samples')
       end do
       close (u)
-      open (newunit=sim%csv_unit, file=path, status='replace', action='write', iostat=ios, &
+      open (newunit=out%csv_unit, file=path, status='replace', action='write', iostat=ios, &
             iomsg=msg)
       if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
-      do k = 1, sim%samples + 1
-        write (sim%csv_unit, '(a)') trim(rows(k))
+      do k = 1, out%samples + 1
+        write (out%csv_unit, '(a)') trim(rows(k))
       end do
-      sim%csv_open = .true.
+      out%csv_open = .true.
     end subroutine reopen_csv
   end subroutine output_open
 
@@ -204,17 +281,18 @@ contains
   !! changed something, so that every change stays recorded), and the stored namelist becomes
   !! the input the run continues with (when it is the attribute /run namelist; the dataset of a
   !! scene of some 500 particles and more keeps the first input).
-  subroutine record_restart_changes(sim)
-    type(simulation_t), intent(inout) :: sim
+  subroutine record_restart_changes(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     character(len=9) :: digits
-    if (len(sim%restart_changes) == 0) return
+    if (len(out%restart_changes) == 0) return
     write (digits, '(i9.9)') sim%step
-    call io_write_attribute(sim%io, '/run', 'restart_changes_step_'//digits, &
-                            sim%restart_changes)
+    call io_write_attribute(out%io, '/run', 'restart_changes_step_'//digits, &
+                            out%restart_changes)
     if (len(sim%cfg%given) <= NAMELIST_ATTRIBUTE_MAX) &
-      call io_write_attribute(sim%io, '/run', 'namelist', sim%cfg%given)
+      call io_write_attribute(out%io, '/run', 'namelist', sim%cfg%given)
     call log_line('resumed at step '//itoa(sim%step)//' with the changes '// &
-                  sim%restart_changes//' (run.restart_changes)')
+                  out%restart_changes//' (run.restart_changes)')
   end subroutine record_restart_changes
 
   !> Stop every rank, before anything is written, when output.dir cannot take the run's
@@ -250,7 +328,8 @@ contains
   !> Stop every rank when output.dir holds a file of an earlier run of this scene and
   !! output.overwrite is off; the run makes this check before it writes, and --check makes the
   !! same one so that it refuses what the run would refuse. A resumed run continues its files.
-  subroutine output_check_existing(sim)
+  subroutine output_check_existing(out, sim)
+    type(output_t), intent(in) :: out
     type(simulation_t), intent(in) :: sim
     !> the files of a run besides <name>.h5, as suffixes of the scene name
     character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
@@ -260,7 +339,7 @@ contains
     character(len=:), allocatable :: dir
     logical :: ok
     integer :: k
-    if (sim%cfg%output%overwrite .or. sim%restarted) return
+    if (sim%cfg%output%overwrite .or. out%resumed) return
     dir = config_output_dir(sim%cfg)
     found = ''
     if (sim%dom%rank == 0) then
@@ -281,36 +360,40 @@ contains
   !! output is completed up to the current step (but for its fields) and closed with
   !! stop_reason 'error: <msg>', then every rank exits with EXIT_RUNTIME and rank 0 prints
   !! `msg`.
-  subroutine output_fail(sim, msg)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_fail(out, sim, msg)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     character(len=*), intent(in) :: msg
-    sim%stop_reason = 'error: '//msg
+    out%stop_reason = 'error: '//msg
     ! the errors here are failed writes, most often a full disk: the fields of this step (the
     ! largest record) are left out so that the series and the stop_reason find the space
-    sim%fields_step = sim%step
-    call output_close(sim)
+    out%fields_step = sim%step
+    call output_close(out, sim)
     call fatal_all(msg, EXIT_RUNTIME)
   end subroutine output_fail
 
   !> The output of the run's last step: the fields and the particle sample unless the
   !! schedule wrote them, and the pair's report.
-  subroutine output_final(sim)
-    type(simulation_t), intent(inout) :: sim
-    if (sim%fields_step /= sim%step) call output_fields(sim, sim%step)
-    if (sim%particles_on .and. sim%series_step /= sim%step) call output_particles(sim, sim%step)
-    if (sim%pair_on .and. .not. sim%reported) call output_pair_report(sim)
+  subroutine output_final(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    if (out%fields_step /= sim%step) call output_fields(out, sim, sim%step)
+    if (sim%particles_on .and. out%series_step /= sim%step) &
+      call output_particles(out, sim, sim%step)
+    if (sim%pair_on .and. .not. out%reported) call output_pair_report(out, sim)
   end subroutine output_final
 
   !> The fields and the particle sample that fall on step n by output.field_interval and
   !! output.series_interval (the last step's are written by output_final).
-  subroutine output_scheduled(sim, n)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_scheduled(out, sim, n)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     if (sim%lp%field_every > 0) then
-      if (mod(n, sim%lp%field_every) == 0) call output_fields(sim, n)
+      if (mod(n, sim%lp%field_every) == 0) call output_fields(out, sim, n)
     end if
     if (sim%particles_on .and. sim%lp%series_every > 0) then
-      if (mod(n, sim%lp%series_every) == 0) call output_particles(sim, n)
+      if (mod(n, sim%lp%series_every) == 0) call output_particles(out, sim, n)
     end if
   end subroutine output_scheduled
 
@@ -333,22 +416,24 @@ contains
   !> Complete the output of the current step (the fields and the particle sample unless they
   !! are written, the pair's report), store why the run ended as /run stop_reason and close the
   !! run file and the CSV file. Collective; nothing happens once the output is closed.
-  subroutine output_close(sim)
-    type(simulation_t), intent(inout) :: sim
-    if (.not. sim%output_open) return
-    call output_final(sim)
-    call io_write_attribute(sim%io, '/run', 'stop_reason', sim%stop_reason)
-    call io_close(sim%io)
-    sim%output_open = .false.
-    if (sim%csv_open) close (sim%csv_unit)
-    sim%csv_open = .false.
+  subroutine output_close(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    if (.not. out%file_open) return
+    call output_final(out, sim)
+    call io_write_attribute(out%io, '/run', 'stop_reason', out%stop_reason)
+    call io_close(out%io)
+    out%file_open = .false.
+    if (out%csv_open) close (out%csv_unit)
+    out%csv_open = .false.
   end subroutine output_close
 
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
   !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
   !! of the step that reached time t.
-  subroutine output_particles(sim, n)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_particles(out, sim, n)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: v(:, :)
     real(wp) :: dx, dt, fu, y0
@@ -366,19 +451,20 @@ contains
                    p%fy*fu, p%torque*fu*dx]
       end associate
     end do
-    if (n == 0) call io_write_attribute(sim%io, '/particles', 'count', sim%parts%n)
-    sim%samples = sim%samples + 1
-    sim%series_step = n
-    call io_write_series(sim%io, 'particles', ['t'], [n*dt], ['s'])
-    call io_write_table(sim%io, 'particles', series_names, v, series_units)
-    if (sim%window_on) call io_write_series(sim%io, 'particles', ['window_offset'], [y0], ['cm'])
-    if (sim%pair_on) call write_pair(sim, n, v)
+    if (n == 0) call io_write_attribute(out%io, '/particles', 'count', sim%parts%n)
+    out%samples = out%samples + 1
+    out%series_step = n
+    call io_write_series(out%io, 'particles', ['t'], [n*dt], ['s'])
+    call io_write_table(out%io, 'particles', series_names, v, series_units)
+    if (sim%window_on) call io_write_series(out%io, 'particles', ['window_offset'], [y0], ['cm'])
+    if (sim%pair_on) call write_pair(out, sim, n, v)
   end subroutine output_particles
 
   !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
   !! (particle, quantity) in physical units as written to /particles.
-  subroutine write_pair(sim, n, v)
-    type(simulation_t), intent(inout) :: sim
+  subroutine write_pair(out, sim, n, v)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     real(wp), intent(in) :: v(:, :)
     real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
@@ -396,17 +482,17 @@ contains
       cd(k) = drag_coefficient(v(k, 7), v(k, 3), v(k, 4), rho_f, d(k))
     end do
     names = [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
-    call io_write_series(sim%io, 'diagnostics', names, &
+    call io_write_series(out%io, 'diagnostics', names, &
                          [t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)], &
                          [character(len=2) :: 's', '1', 'cm', 'cm', 'cm', '1'])
-    call io_write_table(sim%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]), &
+    call io_write_table(out%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]), &
                         ['1', '1'])
-    if (sim%csv_open) then
+    if (out%csv_open) then
       write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
         re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
-      write (sim%csv_unit, '(a)', iostat=ios, iomsg=msg) trim(row)
+      write (out%csv_unit, '(a)', iostat=ios, iomsg=msg) trim(row)
       ! kept on disk row by row: a rank that aborts the job must not take the series with it
-      if (ios == 0) flush (sim%csv_unit, iostat=ios, iomsg=msg)
+      if (ios == 0) flush (out%csv_unit, iostat=ios, iomsg=msg)
       ! rank 0 alone writes it: it ends the job (a full disk)
       if (ios /= 0) call fatal_local('cannot write the CSV file '''// &
                                      config_output_dir(sim%cfg)//'/'//sim%cfg%name// &
@@ -416,8 +502,9 @@ contains
 
   !> At the end of a run with a pair: the pattern and its episodes into /diagnostics and the
   !! log, with the thresholds they were found with.
-  subroutine output_pair_report(sim)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_pair_report(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     real(wp) :: dx, d(2), gamma, dh
     character(len=7), parameter :: episode_names(3) = ['start  ', 'end    ', 'gap_min']
     character(len=256) :: line
@@ -425,14 +512,14 @@ contains
     integer :: k
     dx = sim%lp%dx
     pattern = pair_pattern(sim%pair)
-    sim%reported = .true.
+    out%reported = .true.
     associate (cp => sim%cfg%particles, e => sim%pair)
       d = cp%diameter(1:2)
       gamma = maxval(d)/minval(d)
       dh = abs(cp%y(1) - cp%y(2))/maxval(d)
-      call io_write_attribute(sim%io, '/diagnostics', 'pattern', pattern)
-      call io_write_attribute(sim%io, '/diagnostics', 'episodes', e%n)
-      call io_write_attribute(sim%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
+      call io_write_attribute(out%io, '/diagnostics', 'pattern', pattern)
+      call io_write_attribute(out%io, '/diagnostics', 'episodes', e%n)
+      call io_write_attribute(out%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
       call put('kiss_enter', e%enter*dx, 'cm')
       call put('kiss_release', e%release*dx, 'cm')
       call put('kiss_enter_cells', kiss_enter_cells(sim%cfg), '1')
@@ -444,10 +531,10 @@ contains
       call put('h_ref', cp%gravity*sim%cfg%run%t_ref**2, 'cm')
       call put('gravity', cp%gravity, 'cm/s^2')
       call put('width', sim%cfg%domain%width, 'cm')
-      call io_write_attribute(sim%io, '/diagnostics', 'ended_early', &
-                              merge(0, 1, sim%stop_reason == 'finished'))
+      call io_write_attribute(out%io, '/diagnostics', 'ended_early', &
+                              merge(0, 1, out%stop_reason == 'finished'))
       do k = 1, e%n
-        call io_write_series(sim%io, 'diagnostics/episodes', episode_names, &
+        call io_write_series(out%io, 'diagnostics/episodes', episode_names, &
                              [e%t_start(k), e%t_end(k), e%gap_min(k)*dx], ['s ', 's ', 'cm'])
       end do
       write (line, '(a,f5.2,a,f6.2,a)') 'DKT pattern: '//pattern//' (gamma = ', gamma, &
@@ -469,7 +556,7 @@ contains
     subroutine put(name, value, unit)
       character(len=*), intent(in) :: name, unit
       real(wp), intent(in) :: value
-      call write_quantity(sim%io, '/diagnostics', name, value, unit)
+      call write_quantity(out%io, '/diagnostics', name, value, unit)
     end subroutine put
   end subroutine output_pair_report
 
@@ -486,8 +573,9 @@ contains
   !> Fields in physical units: rho (g/cm^3), ux, uy (cm/s), vorticity (1/s), pressure
   !! deviation c_s^2 (rho - rho_f) (g/(cm s^2)); with particles the particle number of each node
   !! and the disks (centre, velocity, angular velocity, radius) at this step.
-  subroutine output_fields(sim, n)
-    type(simulation_t), intent(inout) :: sim
+  subroutine output_fields(out, sim, n)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: fld(:, :, :), id(:, :), disks(:, :)
     real(wp) :: uc, y0
@@ -503,7 +591,7 @@ contains
       fld(:, :, 4) = fld(:, :, 4)/lp%dt
       y0 = 0.0_wp
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
-      sim%fields_step = n
+      out%fields_step = n
       if (sim%particles_on) then
         allocate (id(nx, nyl), disks(sim%parts%n, 6))
         call particles_solid_field(sim%parts, sim%dom, id)
@@ -514,10 +602,10 @@ contains
                            p%omega/lp%dt, p%r*lp%dx]
           end associate
         end do
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units, &
+        call io_write_fields(out%io, n, n*lp%dt, y0, field_names, fld, field_units, &
                              solid=nint(id), disks=disks)
       else
-        call io_write_fields(sim%io, n, n*lp%dt, y0, field_names, fld, field_units)
+        call io_write_fields(out%io, n, n*lp%dt, y0, field_names, fld, field_units)
       end if
     end associate
   end subroutine output_fields

@@ -1,12 +1,11 @@
-!> A flow simulation on MPI slabs: set-up from the configuration and the time loop.
-!> The time loop (simulation_run) reads like docs/model.md §1–2: stream-collide with the
-!> boundaries, the particles and the window, the guards, then output, progress and checkpoints,
-!> each a call into its own module (dkt_output, dkt_report, dkt_checkpoint_policy).
+!> A flow simulation on MPI slabs: set-up from the configuration and one time step
+!> (simulation_step, docs/model.md §1–2): stream-collide with the boundaries, the particles and
+!> the window. The time loop around it, with the guards and the services, is dkt_run's.
 module dkt_simulation
   use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2
-  use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
+  use dkt_errors, only: fatal_all
   use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
                         largest_diameter
   use dkt_lattice, only: equilibrium
@@ -21,22 +20,15 @@ module dkt_simulation
                            particles_reduce_forces, particles_move, &
                            particles_stable_substeps, MOTION_FREE, MOTION_FIXED, &
                            MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
-  use dkt_diagnostics, only: guard_check, guard_particle_speed, guard_set_advice, &
-                             pair_diag_init, pair_diag_update, pair_gaps
+  use dkt_diagnostics, only: guard_set_advice, pair_diag_init, pair_diag_update, pair_gaps
   use dkt_window, only: window_init, window_offset, window_follow, window_escaped
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
-  use dkt_io, only: io_close
   use dkt_text, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
-  use dkt_output, only: output_fields, output_particles, output_close, output_final, &
-                        output_scheduled, output_mark_finished
-  use dkt_report, only: progress_t, report_start, report_progress, report_performance
-  use dkt_checkpoint_policy, only: checkpoint_clock_t, checkpoint_start, checkpoint_due, &
-                                   checkpoint_finish, checkpoint_final, checkpoint_stop_message
   implicit none
   private
-  public :: simulation_t, simulation_setup, simulation_run, simulation_finish
+  public :: simulation_t, simulation_setup, simulation_step, simulation_finish
 
   !> the most particle sub-steps per fluid step a run takes (docs/running.md): more means a
   !! contact law so stiff (collision.stiffness far below its default) that the run never ends
@@ -210,108 +202,23 @@ contains
     end select
   end subroutine initialise
 
-  !> The time loop.
-  subroutine simulation_run(sim)
+  !> One time step n of the solver (docs/model.md §1–2): stream-collide with the boundaries,
+  !! and with particles E6–E11 and the window; f_next becomes f, and the pair's gap is sampled.
+  !! `failure` says why a particle is out of place ('' if none).
+  subroutine simulation_step(sim, n, failure)
     type(simulation_t), intent(inout) :: sim
-    type(progress_t) :: prog
-    type(checkpoint_clock_t), asynchronous :: clock
-    integer :: n
-    real(wp) :: t, mach, y0
-    logical :: last, stop
-    character(len=:), allocatable :: failure, placed, fast
-
-    associate (lp => sim%lp, cfg => sim%cfg)
-      if (.not. sim%restarted) then
-        if (lp%field_every > 0) call output_fields(sim, 0)
-        if (sim%particles_on) call output_particles(sim, 0)
-      end if
-      call checkpoint_start(clock)
-      call report_start(prog, sim%step + 1)
+    integer, intent(in) :: n
+    character(len=:), allocatable, intent(out) :: failure
+    if (sim%particles_on) then
+      call particle_step(sim, n, failure)
+    else
       failure = ''
-      placed = ''
-      do n = sim%step + 1, lp%steps
-        if (sim%particles_on) then
-          call particle_step(sim, n, failure)
-        else
-          call fluid_step(sim, n)
-        end if
-        call swap_lattices(sim)
-        sim%step = n
-        t = n*lp%dt
-        y0 = 0.0_wp
-        if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
-        if (sim%pair_on) call pair_sample(sim, n)
-        last = n == lp%steps .or. len(sim%stopped_early) > 0
-
-        ! a particle out of place or a failed guard ends the loop on every rank at once; the
-        ! output is written below. A free particle leaves the channel only when the flow has
-        ! become unstable, and then the guard's diagnosis (where, what to change) is the one
-        ! to give.
-        ! the particle speed guard is cheap (one test per particle), so it runs every step
-        fast = ''
-        if (sim%particles_move .and. len(failure) == 0) &
-          fast = guard_particle_speed(sim%parts%p%u, sim%parts%p%v, sim%parts%p%x, &
-                                      sim%parts%p%y, cfg%run%particle_speed_limit, n, t, &
-                                      lp%dx, y0)
-        if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
-            last) then
-          placed = failure
-          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
-                           mach, failure)
-          if (len(failure) > 0) exit
-          failure = placed
-          if (len(failure) > 0) exit
-          failure = fast
-          if (len(failure) > 0) exit
-        end if
-        if (.not. last) call output_scheduled(sim, n)
-        if (cfg%run%progress_every > 0) then
-          if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
-            ! the progress line reports the current Mach number, which the guard measures
-            if (mod(n, cfg%run%guard_every) /= 0) then
-              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, &
-                               y0, mach, failure)
-              if (len(failure) > 0) exit
-            end if
-            call report_progress(sim, prog, n, mach)
-          end if
-        end if
-        call checkpoint_due(sim, clock, last, stop)
-        if (stop .or. last) exit
-      end do
-      call checkpoint_finish(clock)
-      n = sim%step
-      if (len(failure) > 0) then
-        ! every rank saw the same failure: write the last step's state (what went wrong is
-        ! in it), close the output, then stop with the message
-        if (failure == placed) then
-          sim%stop_reason = 'particle: '//failure
-        else
-          sim%stop_reason = 'guard: '//failure
-        end if
-        call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
-                      '; the output holds the run up to this step')
-        call output_close(sim)
-        call fatal_all(failure, EXIT_RUNTIME)
-      end if
-      call report_performance(sim, prog, n)
-      if (sim%interrupted) then
-        call checkpoint_stop_message(sim, clock)
-        ! the output up to this step; a resumed run cuts back what the checkpoint has not
-        call output_close(sim)
-        return
-      end if
-      sim%stop_reason = 'finished'
-      if (len(sim%stopped_early) > 0) then
-        sim%stop_reason = 'window_escape'
-        call warn(sim%stopped_early)
-      end if
-      call output_final(sim)
-      call checkpoint_final(sim)
-      call output_close(sim)
-      call output_mark_finished(sim)
-    end associate
-  end subroutine simulation_run
+      call fluid_step(sim, n)
+    end if
+    call swap_lattices(sim)
+    sim%step = n
+    if (sim%pair_on) call pair_sample(sim, n)
+  end subroutine simulation_step
 
   !> One step without particles (E1-E5): exchange the crossing populations while the rows that
   !! do not need them are swept, then the two rows next to the slab faces; open ends last.
@@ -579,10 +486,6 @@ contains
 
   subroutine simulation_finish(sim)
     type(simulation_t), intent(inout) :: sim
-    if (sim%output_open) call io_close(sim%io)
-    sim%output_open = .false.
-    if (sim%csv_open) close (sim%csv_unit)
-    sim%csv_open = .false.
     call log_close()
     call lattice_free(sim%f)
     if (.not. sim%in_place) call lattice_free(sim%f_next)

@@ -9,18 +9,15 @@ program dktlbm
   use dkt_config, only: cli_t, config_t, lattice_params_t, parse_command_line, read_text_file, &
                         config_load, config_to_namelist, print_help, &
                         config_check_text
-  use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
-  use dkt_report, only: report_summary
-  use dkt_checkpoint_policy, only: checkpoint_resume
+  use dkt_run, only: run_t, run_setup, run_execute, run_finish
   use dkt_config_restart, only: restart_changes_problem
-  use dkt_output, only: output_open, output_check_existing, output_check_dir
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
   type(cli_t) :: cli
   type(config_t) :: cfg
   type(lattice_params_t) :: lp
-  type(simulation_t) :: sim
+  type(run_t), asynchronous :: run
   character(len=:), allocatable :: err, text, warnings
   integer :: rank, status
 
@@ -59,17 +56,9 @@ program dktlbm
 
   ! --check sets up all but the lattices (the memory check included), reports and refuses
   ! what the run would refuse
-  call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
-  call output_check_dir(sim)
-  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
-  call report_summary(sim)
-  if (cli%check) then
-    if (len(cli%restart) == 0) call output_check_existing(sim)
-  else
-    call output_open(sim)
-    call simulation_run(sim)
-  end if
-  call simulation_finish(sim)
+  call run_setup(run, cfg, lp, MPI_COMM_WORLD, cli%restart, cli%check)
+  if (.not. cli%check) call run_execute(run)
+  call run_finish(run)
   call MPI_Finalize()
 
 contains
