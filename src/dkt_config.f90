@@ -17,7 +17,7 @@ module dkt_config
                               initial_cfg_t, particle_cfg_t, particles_cfg_t, pair_cfg_t, &
                               window_cfg_t, diagnostics_cfg_t, coupling_cfg_t, collision_cfg_t, &
                               run_cfg_t, output_cfg_t, config_registry, config_groups, &
-                              particles_allocate
+                              particles_allocate, config_choices
   use dkt_cli, only: cli_t, parse_command_line, parse_arguments, read_text_file, print_help
   use dkt_config_scene, only: expand, pair_d1, largest_diameter, window_bottom, &
                               kiss_enter_cells, kiss_thresholds, dx_knob, velocity_scale, &
@@ -34,7 +34,7 @@ module dkt_config
   public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
   public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
   public :: dx_knob, pair_d1, largest_diameter, particles_allocate, velocity_scale
-  public :: compressibility_class, config_registry
+  public :: compressibility_class, config_registry, config_choices
 
   character(len=*), parameter :: NL = new_line('a')
 
@@ -93,6 +93,7 @@ contains
       call check_key(reg%keys(find_key(reg, 'particles', 'diameter')), cfg%file, err)
       if (len(err) > 0) return
     end if
+    call config_choices(cfg)
     call config_checks(cfg, reg, .true., err, found, derived)
     if (len(err) > 0) return
     if (present(warnings)) warnings = found
@@ -163,6 +164,7 @@ contains
     c = cfg
     if (.not. allocated(c%file)) c%file = ''
     call config_registry(c, reg)
+    call config_choices(c)
     call config_checks(c, reg, .false., err, found, lp)
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found

@@ -11,6 +11,7 @@ module dkt_memory
   use dkt_domain, only: domain_t
   use dkt_text, only: fmt_real, counted
   use dkt_store, only: lattice_bytes
+  use dkt_choices, only: STREAMING_IN_PLACE
   implicit none
   private
   public :: rank_memory, check_memory, fixed2, GIB, MIB
@@ -40,8 +41,8 @@ contains
     real(wp) :: bytes(3)
     real(wp) :: d_cells
     integer :: n
-    bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming == 'in_place')*9.0_wp* &
-               real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)*real(nyl + 2, wp)
+    bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming_kind == STREAMING_IN_PLACE)*9.0_wp* &
+               real(lattice_bytes(cfg%lbm%precision_kind), wp)*real(nxp, wp)*real(nyl + 2, wp)
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then

@@ -10,6 +10,7 @@ module dkt_report
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
+  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
@@ -89,8 +90,9 @@ contains
       end if
       line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB ('// &
              trim(merge('one lattice, streamed in place', 'two lattices                  ', &
-                        cfg%lbm%streaming == 'in_place'))//'; populations stored in '// &
-             itoa(lattice_bytes(cfg%lbm%precision))//' bytes, lbm.precision = '// &
+                        cfg%lbm%streaming_kind == STREAMING_IN_PLACE))// &
+             '; populations stored in '//itoa(lattice_bytes(cfg%lbm%precision_kind))// &
+             ' bytes, lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
              fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
              trim(particles)//'; '//trim(window)
@@ -99,9 +101,10 @@ contains
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
              trim(cfg%domain%lower)//', upper end '//trim(cfg%domain%upper)
       if (sim%coll%forced) line = trim(line)//', body force'
-      if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
+      if (any([cfg%domain%lower_kind, cfg%domain%upper_kind] == END_VELOCITY)) &
         line = trim(line)//', inlet '//trim(cfg%inlet%profile)
-      if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
+      if (cfg%initial%flow_kind /= FLOW_REST) &
+        line = trim(line)//', initial '//trim(cfg%initial%flow)
       if (sim%particles_on) then
         line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
                ', E7 '//trim(cfg%coupling%momentum)//', interior '// &
