@@ -7,7 +7,7 @@ module dkt_checkpoint_policy
                      MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR
   use dkt_kinds, only: wp
   use dkt_errors, only: fatal_all, warn
-  use dkt_config, only: config_output_dir
+  use dkt_config, only: config_t
   use dkt_particles, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             NSTATE, STORAGE_NAMES
@@ -17,7 +17,6 @@ module dkt_checkpoint_policy
   use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t, path_t
   use dkt_restart_check, only: restart_problem
-  use dkt_config_restart, only: restart_input_check
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_fail
   use dkt_io, only: io_flush
@@ -27,6 +26,18 @@ module dkt_checkpoint_policy
             checkpoint_final, checkpoint_stop_message, checkpoint_resume
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
+
+  abstract interface
+    !> The comparison of the input with the one `stored` in the checkpoint at `path`, which
+    !! stops the run on a change of the physics beyond run.restart_changes and returns the
+    !! changes it allows in `record` (the input layer's restart_input_check).
+    subroutine input_check_i(cfg, stored, path, record)
+      import :: config_t
+      type(config_t), intent(in) :: cfg
+      character(len=*), intent(in) :: stored, path
+      character(len=:), allocatable, intent(out) :: record
+    end subroutine input_check_i
+  end interface
 
   !> The ranks agree on the signal and clock flags with a reduction started one step earlier,
   !! so that no step waits for it; every rank acts on the same flags at the same step.
@@ -141,10 +152,12 @@ contains
   !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
   !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
   !! another lattice or time step, or with another number of particles, stops every rank, as
-  !! does an input that changes the checkpoint's physics beyond run.restart_changes.
-  subroutine checkpoint_resume(sim, path)
+  !! does an input that changes the checkpoint's physics beyond run.restart_changes
+  !! (`input_check`, after the checks of the lattice, the precision and the step).
+  subroutine checkpoint_resume(sim, path, input_check)
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
+    procedure(input_check_i) :: input_check
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: err
     character(len=512) :: msg
@@ -178,7 +191,7 @@ contains
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
     ! the physics of its input (a lattice of other sizes was refused above with its sizes)
-    call restart_input_check(sim%cfg, chk%given, path, sim%restart_changes)
+    call input_check(sim%cfg, chk%given, path, sim%restart_changes)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
@@ -220,7 +233,7 @@ contains
     character(len=:), allocatable :: dir, path, err, before
     integer :: k
     logical :: ok
-    dir = config_output_dir(sim%cfg)
+    dir = sim%cfg%output_dir
     path = checkpoint_name(dir, sim%cfg%name, sim%step)
     chk%step = sim%step
     chk%shift = sim%win%shift

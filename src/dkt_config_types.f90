@@ -222,6 +222,8 @@ module dkt_config_types
     !> the input as read (namelist text), before &pair, &window and cells_per_diameter were
     !! turned into particles, domain and dx: reading it back gives the same configuration
     character(len=:), allocatable :: given
+    !> the output directory: output.dir, or runs/<name> when that is empty (set at load)
+    character(len=:), allocatable :: output_dir
     type(domain_cfg_t) :: domain
     type(fluid_cfg_t) :: fluid
     type(lbm_cfg_t) :: lbm

@@ -7,7 +7,7 @@ module dkt_memory
                      MPI_IN_PLACE
   use dkt_kinds, only: wp, pi, mpi_wp
   use dkt_errors, only: fatal_all
-  use dkt_config, only: config_t, lattice_params_t, largest_diameter
+  use dkt_config, only: config_t, lattice_params_t
   use dkt_domain, only: domain_t
   use dkt_text, only: fmt_real, counted
   use dkt_store, only: lattice_bytes
@@ -46,7 +46,7 @@ contains
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then
-      d_cells = largest_diameter(cfg)/lp%dx
+      d_cells = lp%largest_diameter/lp%dx
       bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
     end if
     bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp) + &

@@ -4,7 +4,6 @@ module dkt_report
   use mpi_f08, only: MPI_Wtime
   use dkt_kinds, only: wp, i8
   use dkt_errors, only: warn
-  use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob, compressibility_class
   use dkt_mrt, only: collision_describe
   use dkt_diagnostics, only: SQ_UNDAMPED
   use dkt_log, only: log_line
@@ -51,7 +50,7 @@ contains
       call log_line(trim(line))
       ! the weakly compressible error is O(Ma^2) (docs/model.md §1, "Mach-aware set-up")
       write (line, '(a,es10.3e2,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
-      line = trim(line)//' '//compressibility_class(lp%mach)
+      line = trim(line)//' '//lp%compressibility
       if (cfg%lbm%mach > 0.0_wp) then
         write (line, '(a,f8.5,a,es10.3e2,a)') trim(line)//'; tau = ', lp%tau, &
           ' from lbm.mach = ', cfg%lbm%mach, ' (acoustic scaling; lbm.tau not used)'
@@ -70,7 +69,7 @@ contains
         write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
           ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '
         call warn(trim(line)//' The velocity scale comes from '// &
-                  velocity_scale_source(cfg)//': lower it, or '//dx_knob(cfg)// &
+                  lp%velocity_source//': lower it, or '//lp%dx_knob// &
                   ' or lower lbm.tau (both shrink dt)')
       end if
       write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
@@ -130,7 +129,7 @@ contains
       else
         line = 'fields at the end'
       end if
-      call log_line(trim(line)//' into '//config_output_dir(cfg)//'/'//cfg%name//'.h5')
+      call log_line(trim(line)//' into '//cfg%output_dir//'/'//cfg%name//'.h5')
     end associate
   end subroutine report_summary
 

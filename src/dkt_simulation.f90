@@ -7,8 +7,7 @@ module dkt_simulation
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2
   use dkt_errors, only: fatal_all, warn, internal_error, EXIT_RUNTIME
-  use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
-                        largest_diameter
+  use dkt_config, only: config_t, lattice_params_t
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_init, sweep_init, sweep_rows
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
@@ -61,7 +60,6 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
-    real(wp) :: enter, release
     logical :: single, shifted
 
     sim%cfg = cfg
@@ -72,8 +70,7 @@ contains
     min_rows = MIN_SLAB_ROWS
     if (sim%particles_on) then
       ! a slab holds at least the largest particle plus its interpolation stencil
-      min_rows = max(min_rows, ceiling(largest_diameter(cfg) &
-                                       /lp%dx) + 4)
+      min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4)
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
@@ -98,19 +95,16 @@ contains
     end if
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
-      associate (d1 => largest_diameter(cfg)/lp%dx)
-        call window_init(sim%win, window_bottom(cfg), cfg%window%below*d1, cfg%window%margin*d1)
+      associate (d1 => lp%largest_diameter/lp%dx)
+        call window_init(sim%win, lp%window_bottom, cfg%window%below*d1, cfg%window%margin*d1)
       end associate
     end if
     if (sim%particles_on) call setup_particles(sim)
     ! the guards' advice names the knob that sets dx in this scene, and s_q where it is the
     ! measured cause of a run-away flow
-    call guard_set_advice(dx_knob(cfg), sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
+    call guard_set_advice(lp%dx_knob, sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
     sim%pair_on = cfg%particles%count >= 2
-    if (sim%pair_on) then
-      call kiss_thresholds(cfg, enter, release)
-      call pair_diag_init(sim%pair, enter, release)
-    end if
+    if (sim%pair_on) call pair_diag_init(sim%pair, lp%kiss_enter, lp%kiss_release)
     sim%stopped_early = ''
   end subroutine simulation_setup
 

@@ -12,7 +12,7 @@ program dktlbm
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_run, simulation_finish
   use dkt_report, only: report_summary
   use dkt_checkpoint_policy, only: checkpoint_resume
-  use dkt_config_restart, only: restart_changes_problem
+  use dkt_config_restart, only: restart_changes_problem, restart_input_check
   use dkt_output, only: output_open, output_check_existing, output_check_dir
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
@@ -61,7 +61,8 @@ program dktlbm
   ! what the run would refuse
   call simulation_setup(sim, cfg, lp, MPI_COMM_WORLD, lattices=.not. cli%check)
   call output_check_dir(sim)
-  if (len(cli%restart) > 0 .and. .not. cli%check) call checkpoint_resume(sim, cli%restart)
+  if (len(cli%restart) > 0 .and. .not. cli%check) &
+    call checkpoint_resume(sim, cli%restart, restart_input_check)
   call report_summary(sim)
   if (cli%check) then
     if (len(cli%restart) == 0) call output_check_existing(sim)
