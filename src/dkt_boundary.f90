@@ -12,6 +12,9 @@
 !> storage (dkt_store). E5 is computed from the unshifted populations in 8 bytes.
 module dkt_boundary
   use dkt_kinds, only: wp, pi
+  use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
+  use dkt_errors, only: internal_error
+  use dkt_text, only: itoa
   use dkt_lattice, only: ex, ey, opp, equilibrium
   use dkt_domain, only: domain_t
   use dkt_store, only: lattice_t, lattice_get_node, lattice_set_node
@@ -20,7 +23,6 @@ module dkt_boundary
   public :: boundary_t, boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends, &
             END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, inlet_profile
 
-  integer, parameter :: END_WALL = 1, END_PERIODIC = 2, END_VELOCITY = 3, END_OUTFLOW = 4
   integer, parameter :: plus_x(3) = [1, 5, 8], minus_x(3) = [3, 6, 7]
   integer, parameter :: plus_y(3) = [2, 5, 6], minus_y(3) = [4, 7, 8]
 
@@ -40,6 +42,10 @@ contains
     logical, intent(in) :: periodic_x, parabolic
     integer, intent(in) :: lower, upper
     real(wp), intent(in) :: u_in, ramp_steps
+    ! an end code outside END_* would silently be no end at all
+    if (any([lower, upper] < END_WALL .or. [lower, upper] > END_OUTFLOW)) &
+      call internal_error('boundary_init: end codes '//itoa(lower)//', '//itoa(upper)// &
+                          ' are not END_WALL .. END_OUTFLOW')
     bc%periodic_x = periodic_x
     bc%lower = lower
     bc%upper = upper

@@ -7,7 +7,7 @@ module dkt_checkpoint_policy
                      MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR
   use dkt_kinds, only: wp
   use dkt_errors, only: fatal_all, warn
-  use dkt_config, only: config_output_dir
+  use dkt_config, only: config_t
   use dkt_particles, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             NSTATE, STORAGE_NAMES
@@ -17,7 +17,6 @@ module dkt_checkpoint_policy
   use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t
   use dkt_restart_check, only: restart_problem
-  use dkt_config_restart, only: restart_input_check
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_t, output_fail, output_resume, output_set_stop_reason, &
                         output_flush, output_samples
@@ -25,9 +24,21 @@ module dkt_checkpoint_policy
   private
   public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
             checkpoint_final, checkpoint_stop_message, checkpoint_resume, &
-            checkpoint_interrupted
+            checkpoint_interrupted, input_check_i
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
+
+  abstract interface
+    !> The comparison of the input with the one `stored` in the checkpoint at `path`, which
+    !! stops the run on a change of the physics beyond run.restart_changes and returns the
+    !! changes it allows in `record` (the input layer's restart_input_check).
+    subroutine input_check_i(cfg, stored, path, record)
+      import :: config_t
+      type(config_t), intent(in) :: cfg
+      character(len=*), intent(in) :: stored, path
+      character(len=:), allocatable, intent(out) :: record
+    end subroutine input_check_i
+  end interface
 
   !> a file name, as an element of a list of names of different lengths
   type :: path_t
@@ -160,12 +171,14 @@ contains
   !> Continue from the checkpoint at `path` (written by this scene on any number of ranks): the
   !! populations, the particles, the window, the kissing episodes and the step. A checkpoint of
   !! another lattice or time step, or with another number of particles, stops every rank, as
-  !! does an input that changes the checkpoint's physics beyond run.restart_changes.
-  subroutine checkpoint_resume(state, out, sim, path)
+  !! does an input that changes the checkpoint's physics beyond run.restart_changes
+  !! (`input_check`, after the checks of the lattice, the precision and the step).
+  subroutine checkpoint_resume(state, out, sim, path, input_check)
     type(checkpoint_state_t), intent(inout) :: state
     type(output_t), intent(inout) :: out
     type(simulation_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
+    procedure(input_check_i) :: input_check
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: err, changes
     character(len=512) :: msg
@@ -199,7 +212,7 @@ contains
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
     ! the physics of its input (a lattice of other sizes was refused above with its sizes)
-    call restart_input_check(sim%cfg, chk%given, path, changes)
+    call input_check(sim%cfg, chk%given, path, changes)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
@@ -241,7 +254,7 @@ contains
     character(len=:), allocatable :: dir, path, err, before
     integer :: k
     logical :: ok
-    dir = config_output_dir(sim%cfg)
+    dir = sim%cfg%output_dir
     path = checkpoint_name(dir, sim%cfg%name, sim%step)
     chk%step = sim%step
     chk%shift = sim%win%shift

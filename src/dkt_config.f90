@@ -8,7 +8,9 @@
 !> - dkt_config_scene: &pair, &window, cells_per_diameter and mach turned into plain keys, and
 !>   the scene's derived quantities (D_1, the window's lower end, the kissing thresholds);
 !> - dkt_config_checks, dkt_config_checks_run: the checks, one procedure `chk_<what>` each;
-!> - dkt_config_lattice: the conversion to lattice units.
+!> - dkt_config_lattice: the conversion to lattice units, which also stores the scene's derived
+!>   quantities in lattice_params_t, so that the modules outside the input layer read
+!>   components (cfg%output_dir, cfg%given, lp%d1, ...) and take only types from here.
 module dkt_config
   use dkt_kinds, only: wp, MAX_PARTICLES
   use dkt_registry, only: registry_t, find_key, check_key, value_text, allowed_text
@@ -17,11 +19,9 @@ module dkt_config
                               initial_cfg_t, particle_cfg_t, particles_cfg_t, pair_cfg_t, &
                               window_cfg_t, diagnostics_cfg_t, coupling_cfg_t, collision_cfg_t, &
                               run_cfg_t, output_cfg_t, config_registry, config_groups, &
-                              particles_allocate
+                              particles_allocate, config_choices
   use dkt_cli, only: cli_t, parse_command_line, parse_arguments, read_text_file, print_help
-  use dkt_config_scene, only: expand, pair_d1, largest_diameter, window_bottom, &
-                              kiss_enter_cells, kiss_thresholds, dx_knob, velocity_scale, &
-                              velocity_scale_source, compressibility_class, MA2_CLASS_TOPS
+  use dkt_config_scene, only: expand
   use dkt_config_lattice, only: lattice_params_t, particles_lb_t
   use dkt_config_checks_run, only: config_checks
   implicit none
@@ -29,12 +29,10 @@ module dkt_config
   public :: config_t, domain_cfg_t, fluid_cfg_t, lbm_cfg_t, inlet_cfg_t, initial_cfg_t
   public :: particle_cfg_t, particles_cfg_t, pair_cfg_t, window_cfg_t, diagnostics_cfg_t
   public :: coupling_cfg_t, collision_cfg_t, run_cfg_t, output_cfg_t
-  public :: lattice_params_t, particles_lb_t, cli_t, MAX_PARTICLES, MA2_CLASS_TOPS
+  public :: lattice_params_t, particles_lb_t, cli_t, MAX_PARTICLES
   public :: parse_command_line, parse_arguments, read_text_file, config_load, config_validate
-  public :: derive_lattice, config_to_namelist, config_output_dir, print_help, window_bottom
-  public :: kiss_enter_cells, kiss_thresholds, config_check_text, velocity_scale_source
-  public :: dx_knob, pair_d1, largest_diameter, particles_allocate, velocity_scale
-  public :: compressibility_class, config_registry
+  public :: derive_lattice, config_to_namelist, config_output_dir, print_help
+  public :: config_check_text, particles_allocate, config_registry, config_choices
 
   character(len=*), parameter :: NL = new_line('a')
 
@@ -85,6 +83,7 @@ contains
     end do
     call namelist_text(reg, defaults, found)
     call move_alloc(found, cfg%given)
+    cfg%output_dir = config_output_dir(cfg)
     call expand(cfg, reg, err)
     if (len(err) > 0) return
     ! D_2 = pair.d1/pair.gamma is the one value expand derives that its key's range can refuse
@@ -93,6 +92,7 @@ contains
       call check_key(reg%keys(find_key(reg, 'particles', 'diameter')), cfg%file, err)
       if (len(err) > 0) return
     end if
+    call config_choices(cfg)
     call config_checks(cfg, reg, .true., err, found, derived)
     if (len(err) > 0) return
     if (present(warnings)) warnings = found
@@ -163,6 +163,7 @@ contains
     c = cfg
     if (.not. allocated(c%file)) c%file = ''
     call config_registry(c, reg)
+    call config_choices(c)
     call config_checks(c, reg, .false., err, found, lp)
     if (len(err) > 0) found = ''
     if (present(warnings)) warnings = found

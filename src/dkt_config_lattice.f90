@@ -5,7 +5,9 @@ module dkt_config_lattice
   use dkt_kinds, only: wp, cs2, pi
   use dkt_lattice, only: e3_heat_flux_rate
   use dkt_config_types, only: config_t
-  use dkt_config_scene, only: window_bottom
+  use dkt_config_scene, only: window_bottom, pair_d1, largest_diameter, kiss_enter_cells, &
+                              kiss_thresholds, dx_knob, velocity_scale_source, &
+                              compressibility_class
   implicit none
   private
   public :: lattice_from
@@ -45,6 +47,17 @@ module dkt_config_lattice
     real(wp) :: cells_per_diameter = 0.0_wp !! smallest used diameter / dx; 0 without particles
     logical :: particles_on = .false. !! the scene has particles (count > 0)
     type(particles_lb_t) :: particles !! particles 1..count in lattice units
+    ! the scene's derived quantities, each computed here once (dkt_config_scene) for the
+    ! modules that set up, report and write the run
+    real(wp) :: d1 = 0.0_wp           !! cm, D_1 of the pair (pair_d1); 0 without particles
+    real(wp) :: largest_diameter = 0.0_wp !! cm, of all particles; 0 without particles
+    real(wp) :: window_bottom = 0.0_wp !! cm, the window's lower end at t = 0; 0 without window
+    real(wp) :: kiss_enter_cells = 0.0_wp !! spacings, diagnostics.enter_cells as it acts
+    real(wp) :: kiss_enter = 0.0_wp   !! spacings, the gap D_r that starts a kissing episode
+    real(wp) :: kiss_release = 0.0_wp !! spacings, the gap D_r that ends it
+    character(len=:), allocatable :: dx_knob         !! how to make dx smaller (advice)
+    character(len=:), allocatable :: velocity_source !! the key(s) behind the velocity scale
+    character(len=:), allocatable :: compressibility !! the O(Ma^2) error class of mach
   end type lattice_params_t
 
 contains
@@ -103,6 +116,16 @@ contains
     if (lp%particles_on) &
       lp%cells_per_diameter = minval(c%particles%diameter(1:c%particles%count))/lp%dx
     call particles_to_lattice(c, lp%dx, lp%dt, lp%particles)
+    if (lp%particles_on) then
+      lp%d1 = pair_d1(c)
+      lp%largest_diameter = largest_diameter(c)
+      call kiss_thresholds(c, lp%kiss_enter, lp%kiss_release)
+    end if
+    if (c%window%enabled) lp%window_bottom = window_bottom(c)
+    lp%kiss_enter_cells = kiss_enter_cells(c)
+    lp%dx_knob = dx_knob(c)
+    lp%velocity_source = velocity_scale_source(c)
+    lp%compressibility = compressibility_class(lp%mach)
   contains
     pure integer function count_of(x)
       real(wp), intent(in) :: x

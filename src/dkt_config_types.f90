@@ -6,13 +6,16 @@
 !> particle_cfg_t). Parsing, range checks, `--print-defaults` and input/README.md (through
 !> tests/test_input_readme.py) all come from the registry that config_registry builds.
 module dkt_config_types
-  use dkt_kinds, only: wp, PRECISION_NAMES, MAX_PARTICLES
+  use dkt_kinds, only: wp, MAX_PARTICLES
+  use dkt_choices, only: choice_code, END_NAMES, COLLISION_NAMES, STREAMING_NAMES, &
+                         PRECISION_NAMES, PROFILE_NAMES, FLOW_NAMES, MOTION_NAMES, BB_NAMES, &
+                         MOMENTUM_NAMES, INTERIOR_NAMES
   use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices
   use dkt_text, only: itoa
   implicit none
   private
-  public :: config_registry, config_groups, particles_allocate
+  public :: config_registry, config_groups, particles_allocate, config_choices
 
   real(wp), parameter, public :: TAU_MAX = 10.0_wp !! the largest lbm.tau, typed or set by lbm.mach
   !> more time steps than this is surely a unit or typing error (a day at 10^4 steps/s)
@@ -25,6 +28,9 @@ module dkt_config_types
     character(len=16) :: sides = 'wall'   !! boundary at x = 0 and x = width
     character(len=16) :: lower = 'wall'   !! boundary at the y = 0 end
     character(len=16) :: upper = 'wall'   !! boundary at the y = height end
+    integer :: sides_kind = 0             !! END_* of sides, set from the text (config_choices)
+    integer :: lower_kind = 0             !! END_* of lower (config_choices)
+    integer :: upper_kind = 0             !! END_* of upper (config_choices)
   contains
     procedure :: register => domain_register
   end type domain_cfg_t
@@ -55,6 +61,9 @@ module dkt_config_types
     !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), or
     !! 'single_unshifted' (f_i in 4 bytes; only to measure what the shift buys)
     character(len=16) :: precision = 'double'
+    integer :: collision_kind = 0         !! COLLISION_* of collision (config_choices)
+    integer :: streaming_kind = 0         !! STREAMING_* of streaming (config_choices)
+    integer :: precision_kind = 0         !! PRECISION_* of precision (config_choices)
   contains
     procedure :: register => lbm_register
   end type lbm_cfg_t
@@ -63,6 +72,7 @@ module dkt_config_types
   type, public :: inlet_cfg_t
     real(wp) :: velocity = 0.0_wp             !! cm/s, signed y-velocity (centreline if parabolic)
     character(len=16) :: profile = 'parabolic' !! 'uniform' or 'parabolic'
+    integer :: profile_kind = 0               !! PROFILE_* of profile (config_choices)
     real(wp) :: ramp_time = 0.0_wp            !! s, smooth ramp-up time of the inlet velocity
   contains
     procedure :: register => inlet_register
@@ -71,6 +81,7 @@ module dkt_config_types
   !> &initial: the flow at t = 0.
   type, public :: initial_cfg_t
     character(len=16) :: flow = 'rest'    !! 'rest' or 'taylor_green'
+    integer :: flow_kind = 0              !! FLOW_* of flow (config_choices)
     real(wp) :: velocity = 0.0_wp         !! cm/s, amplitude of the initial flow
   contains
     procedure :: register => initial_register
@@ -103,6 +114,7 @@ module dkt_config_types
     real(wp), allocatable :: v(:)                     !! cm/s, initial (or prescribed) y-velocity
     real(wp), allocatable :: omega(:)                 !! 1/s, initial (or prescribed) spin
     character(len=16), allocatable :: motion(:)       !! 'free', 'fixed' or 'prescribed'
+    integer, allocatable :: motion_kind(:)            !! MOTION_* of motion (config_choices)
     real(wp) :: gravity = 980.0_wp                    !! cm/s^2, along -y on the particles (E9)
   contains
     procedure :: register => particles_register
@@ -152,6 +164,9 @@ module dkt_config_types
     character(len=16) :: bounce_back = 'yu' !! 'halfway', 'yu' or 'bfl' (E6)
     character(len=16) :: momentum = 'paper' !! 'paper' or 'galilean' (E7)
     character(len=16) :: interior = 'solid' !! 'solid' or 'fluid' (nodes inside a particle)
+    integer :: bounce_back_kind = 0         !! BB_* of bounce_back (config_choices)
+    integer :: momentum_kind = 0            !! MOMENTUM_* of momentum (config_choices)
+    integer :: interior_kind = 0            !! INTERIOR_* of interior (config_choices)
   contains
     procedure :: register => coupling_register
   end type coupling_cfg_t
@@ -207,6 +222,8 @@ module dkt_config_types
     !> the input as read (namelist text), before &pair, &window and cells_per_diameter were
     !! turned into particles, domain and dx: reading it back gives the same configuration
     character(len=:), allocatable :: given
+    !> the output directory: output.dir, or runs/<name> when that is empty (set at load)
+    character(len=:), allocatable :: output_dir
     type(domain_cfg_t) :: domain
     type(fluid_cfg_t) :: fluid
     type(lbm_cfg_t) :: lbm
@@ -263,6 +280,29 @@ contains
     end do
   end function config_groups
 
+  !> Each choice of `c` as its named constant (dkt_choices), from its text: done once at load,
+  !! after the scene keys are expanded, so that the rest of the program compares integers. The
+  !! texts stay for messages, the namelist text and the run file. A text that is not a choice
+  !! gives 0, which every `select case` on the constant refuses as an internal error.
+  subroutine config_choices(c)
+    type(config_t), intent(inout) :: c
+    integer :: k
+    c%domain%sides_kind = choice_code(c%domain%sides, END_NAMES)
+    c%domain%lower_kind = choice_code(c%domain%lower, END_NAMES)
+    c%domain%upper_kind = choice_code(c%domain%upper, END_NAMES)
+    c%lbm%collision_kind = choice_code(c%lbm%collision, COLLISION_NAMES)
+    c%lbm%streaming_kind = choice_code(c%lbm%streaming, STREAMING_NAMES)
+    c%lbm%precision_kind = choice_code(c%lbm%precision, PRECISION_NAMES)
+    c%inlet%profile_kind = choice_code(c%inlet%profile, PROFILE_NAMES)
+    c%initial%flow_kind = choice_code(c%initial%flow, FLOW_NAMES)
+    if (allocated(c%particles%motion)) &
+      c%particles%motion_kind = [(choice_code(c%particles%motion(k), MOTION_NAMES), &
+                                  k=1, size(c%particles%motion))]
+    c%coupling%bounce_back_kind = choice_code(c%coupling%bounce_back, BB_NAMES)
+    c%coupling%momentum_kind = choice_code(c%coupling%momentum, MOMENTUM_NAMES)
+    c%coupling%interior_kind = choice_code(c%coupling%interior, INTERIOR_NAMES)
+  end subroutine config_choices
+
   !> Size the particle arrays of `p` to `n` elements: elements 1..min(n, old size) keep their
   !! values, the others take the defaults of particle_cfg_t.
   subroutine particles_allocate(p, n)
@@ -299,16 +339,15 @@ contains
   subroutine domain_register(self, reg)
     class(domain_cfg_t), intent(inout), target :: self
     type(registry_t), intent(inout) :: reg
-    character(len=*), parameter :: ENDS = 'wall periodic velocity outflow'
     call add_real(reg, 'domain', 'width', self%width, 'cm', &
                   'channel width (x, across the channel)', gt=0.0_wp)
     call add_real(reg, 'domain', 'height', self%height, 'cm', &
                   'channel length (y, along the channel axis)', gt=0.0_wp)
     call add_choice(reg, 'domain', 'sides', self%sides, 'wall periodic', &
                     'boundary at x = 0 and x = width')
-    call add_choice(reg, 'domain', 'lower', self%lower, ENDS, &
+    call add_choice(reg, 'domain', 'lower', self%lower, END_NAMES, &
                     'boundary at the lower end y = 0 (velocity, outflow: E5)')
-    call add_choice(reg, 'domain', 'upper', self%upper, ENDS, &
+    call add_choice(reg, 'domain', 'upper', self%upper, END_NAMES, &
                     'boundary at the upper end y = height; periodic only with lower periodic')
   end subroutine domain_register
 
@@ -331,7 +370,7 @@ contains
     call add_real(reg, 'lbm', 'tau', self%tau, '-', &
                   'relaxation time in time steps; sets nu_lb = (tau - 1/2)/3 and dt (E3); '// &
                   'not used when lbm.mach > 0', gt=0.5_wp, le=TAU_MAX)
-    call add_choice(reg, 'lbm', 'collision', self%collision, 'mrt bgk', &
+    call add_choice(reg, 'lbm', 'collision', self%collision, COLLISION_NAMES, &
                     'collision model: multiple-relaxation-time (E1) or BGK (E4)')
     call add_real(reg, 'lbm', 's_e', self%s_e, '-', 'MRT rate of the energy moment (E3)', &
                   gt=0.0_wp, lt=2.0_wp)
@@ -353,7 +392,7 @@ contains
                     'population storage: 8 bytes, or 4 bytes holding f_i - w_i (computed in 8 '// &
                     'either way); single_unshifted stores f_i in 4 bytes, only to measure '// &
                     'what the shift buys, not for use')
-    call add_choice(reg, 'lbm', 'streaming', self%streaming, 'in_place two_lattice', &
+    call add_choice(reg, 'lbm', 'streaming', self%streaming, STREAMING_NAMES, &
                     'one lattice swept in place, or two (read one, write the other); '// &
                     'the same results to the bit, in_place needs half the memory')
   end subroutine lbm_register
@@ -364,7 +403,7 @@ contains
     type(registry_t), intent(inout) :: reg
     call add_real(reg, 'inlet', 'velocity', self%velocity, 'cm/s', &
                   'signed y-velocity at a velocity end (centreline value if parabolic)')
-    call add_choice(reg, 'inlet', 'profile', self%profile, 'uniform parabolic', &
+    call add_choice(reg, 'inlet', 'profile', self%profile, PROFILE_NAMES, &
                     'shape of the inlet velocity across the channel')
     call add_real(reg, 'inlet', 'ramp_time', self%ramp_time, 's', &
                   'the inlet velocity ramps up smoothly over this time; 0 = at once', ge=0.0_wp)
@@ -374,7 +413,7 @@ contains
   subroutine initial_register(self, reg)
     class(initial_cfg_t), intent(inout), target :: self
     type(registry_t), intent(inout) :: reg
-    call add_choice(reg, 'initial', 'flow', self%flow, 'rest taylor_green', &
+    call add_choice(reg, 'initial', 'flow', self%flow, FLOW_NAMES, &
                     'flow at t = 0; taylor_green needs periodic sides and ends')
     call add_real(reg, 'initial', 'velocity', self%velocity, 'cm/s', &
                   'amplitude of the initial flow', ge=0.0_wp)
@@ -403,7 +442,7 @@ contains
                    'y-velocity at t = 0, kept if prescribed, 0 if fixed')
     call add_reals(reg, 'particles', 'omega', self%omega, '1/s', &
                    'counter-clockwise angular velocity at t = 0, kept if prescribed, 0 if fixed')
-    call add_choices(reg, 'particles', 'motion', self%motion, 'free fixed prescribed', &
+    call add_choices(reg, 'particles', 'motion', self%motion, MOTION_NAMES, &
                      'free (moved by fluid and gravity, E8), fixed (at rest) or prescribed '// &
                      '(u, v, omega kept)')
     do j = 1, size(reg%keys)
@@ -471,11 +510,11 @@ contains
   subroutine coupling_register(self, reg)
     class(coupling_cfg_t), intent(inout), target :: self
     type(registry_t), intent(inout) :: reg
-    call add_choice(reg, 'coupling', 'bounce_back', self%bounce_back, 'halfway yu bfl', &
+    call add_choice(reg, 'coupling', 'bounce_back', self%bounce_back, BB_NAMES, &
                     'bounce-back on the particle surface: half-way, Yu et al. or BFL (E6)')
-    call add_choice(reg, 'coupling', 'momentum', self%momentum, 'paper galilean', &
+    call add_choice(reg, 'coupling', 'momentum', self%momentum, MOMENTUM_NAMES, &
                     'momentum exchange: the paper''s rule or Galilean-invariant (E7)')
-    call add_choice(reg, 'coupling', 'interior', self%interior, 'solid fluid', &
+    call add_choice(reg, 'coupling', 'interior', self%interior, INTERIOR_NAMES, &
                     'nodes inside a particle: reset to the rigid-body equilibrium, or fluid '// &
                     'bounced from both sides of the surface')
   end subroutine coupling_register

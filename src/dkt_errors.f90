@@ -8,7 +8,7 @@ module dkt_errors
   use dkt_text, only: printable, itoa
   implicit none
   private
-  public :: fatal_all, fatal_local, warn, EXIT_INPUT, EXIT_RUNTIME
+  public :: fatal_all, fatal_local, internal_error, warn, EXIT_INPUT, EXIT_RUNTIME
 
   integer, parameter :: EXIT_INPUT = 2   !! exit status for bad input
   !> exit status for a run stopped by a guard or a failed write
@@ -55,6 +55,13 @@ contains
     if (running) call MPI_Abort(MPI_COMM_WORLD, status)
     stop status, quiet = .true.
   end subroutine fatal_local
+
+  !> Stop the run on a value the program itself should never have made (a choice code that no
+  !! case handles): the input was checked, so this is a defect, never a fallback.
+  subroutine internal_error(what)
+    character(len=*), intent(in) :: what !! which value, and where
+    call fatal_local('internal error: '//what)
+  end subroutine internal_error
 
   !> A warning, printed once by rank 0; the run goes on.
   subroutine warn(msg)

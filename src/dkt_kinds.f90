@@ -4,13 +4,10 @@ module dkt_kinds
   use mpi_f08, only: MPI_Datatype, MPI_DOUBLE_PRECISION
   implicit none
   private
-  public :: wp, sp, ip, i8, mpi_wp, pi, cs2, PRECISION_NAMES, MAX_PARTICLES
+  public :: wp, sp, ip, i8, mpi_wp, pi, cs2, MAX_PARTICLES
 
   integer, parameter :: wp = real64 !! working precision of every field and particle quantity
   integer, parameter :: sp = real32 !! storage kind of the populations with lbm.precision = 'single'
-  !> the values of lbm.precision: 8 bytes; 4 bytes holding f_i - w_i; 4 bytes holding f_i (the
-  !! naive form, only there to measure what the shift buys)
-  character(len=*), parameter :: PRECISION_NAMES = 'double single single_unshifted'
   integer, parameter :: ip = int32  !! default integer kind for indices
   integer, parameter :: i8 = int64  !! counters that may exceed 2**31 (cell updates, bytes)
   type(MPI_Datatype), parameter :: mpi_wp = MPI_DOUBLE_PRECISION !! MPI type matching wp

@@ -7,10 +7,11 @@ module dkt_memory
                      MPI_IN_PLACE
   use dkt_kinds, only: wp, pi, mpi_wp
   use dkt_errors, only: fatal_all
-  use dkt_config, only: config_t, lattice_params_t, largest_diameter
+  use dkt_config, only: config_t, lattice_params_t
   use dkt_domain, only: domain_t
   use dkt_text, only: fmt_real, counted
   use dkt_store, only: lattice_bytes
+  use dkt_choices, only: STREAMING_IN_PLACE
   implicit none
   private
   public :: rank_memory, check_memory, fixed2, GIB, MIB
@@ -40,12 +41,12 @@ contains
     real(wp) :: bytes(3)
     real(wp) :: d_cells
     integer :: n
-    bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming == 'in_place')*9.0_wp* &
-               real(lattice_bytes(cfg%lbm%precision), wp)*real(nxp, wp)*real(nyl + 2, wp)
+    bytes(1) = merge(1.0_wp, 2.0_wp, cfg%lbm%streaming_kind == STREAMING_IN_PLACE)*9.0_wp* &
+               real(lattice_bytes(cfg%lbm%precision_kind), wp)*real(nxp, wp)*real(nyl + 2, wp)
     n = cfg%particles%count
     bytes(2) = 0.0_wp
     if (n > 0) then
-      d_cells = largest_diameter(cfg)/lp%dx
+      d_cells = lp%largest_diameter/lp%dx
       bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
     end if
     bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp) + &

@@ -5,9 +5,7 @@ module dkt_output
   use mpi_f08, only: MPI_Bcast, MPI_LOGICAL
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, cs2
-  use dkt_errors, only: fatal_all, fatal_local, EXIT_RUNTIME
-  use dkt_config, only: config_output_dir, config_to_namelist, kiss_thresholds, kiss_enter_cells, &
-                        pair_d1
+  use dkt_errors, only: fatal_all, fatal_local, internal_error, EXIT_RUNTIME
   use dkt_mrt, only: collision_describe
   use dkt_fields, only: macroscopic, vorticity
   use dkt_particles, only: particles_solid_field
@@ -138,7 +136,7 @@ contains
     logical :: ok
 
     out%stop_reason = 'running'
-    dir = config_output_dir(sim%cfg)
+    dir = sim%cfg%output_dir
     err = ''
     if (sim%dom%rank == 0) call make_directories(dir, err)
     ok = len(err) == 0
@@ -189,11 +187,9 @@ contains
               'mach']
     pvalues = [sim%lp%dx, sim%lp%dt, sim%lp%tau, sim%lp%nu_lb, s(1), s(2), s(4), s(7), &
                sim%lp%mach]
-    if (allocated(sim%cfg%given)) then
-      nml = sim%cfg%given            ! the input as read, before &pair and &window expanded
-    else
-      call config_to_namelist(sim%cfg, nml)
-    end if
+    ! the input as read (config_load), before &pair and &window expanded
+    if (.not. allocated(sim%cfg%given)) call internal_error('output_open: no input text')
+    nml = sim%cfg%given
     call io_write_run(out%io, nml, dkt_version_string, dkt_git_revision, sim%dom%nranks, &
                       compiler_version(), dkt_build_flags, pnames, pvalues, &
                       [character(len=2) :: 'cm', 's', '1', '1', '1', '1', '1', '1', '1'])
@@ -223,7 +219,6 @@ contains
     !! (kiss_enter_d1, kiss_release_d1).
     subroutine write_derived(sim)
       type(simulation_t), intent(in) :: sim
-      real(wp) :: enter, release
       associate (c => sim%cfg)
         call put('t_ref', c%run%t_ref, 's')
         call put('h_ref', c%particles%gravity*c%run%t_ref**2, 'cm')
@@ -231,14 +226,13 @@ contains
         call put('width', c%domain%width, 'cm')
         call put('rho_f', c%fluid%density, 'g/cm^3')
         call put('mu', c%fluid%viscosity, 'g/(cm s)')
-        if (sim%particles_on) call put('d1', pair_d1(c), 'cm')
+        if (sim%particles_on) call put('d1', sim%lp%d1, 'cm')
         if (sim%pair_on) then
           call put('diameter_1', c%particles%diameter(1), 'cm')
           call put('diameter_2', c%particles%diameter(2), 'cm')
-          call kiss_thresholds(c, enter, release)
-          call put('kiss_enter', enter*sim%lp%dx, 'cm')
-          call put('kiss_release', release*sim%lp%dx, 'cm')
-          call put('kiss_enter_cells', kiss_enter_cells(c), '1')
+          call put('kiss_enter', sim%lp%kiss_enter*sim%lp%dx, 'cm')
+          call put('kiss_release', sim%lp%kiss_release*sim%lp%dx, 'cm')
+          call put('kiss_enter_cells', sim%lp%kiss_enter_cells, '1')
           call put('kiss_release_cells', c%diagnostics%release_cells, '1')
           call put('kiss_enter_d1', c%diagnostics%enter_d1, '1')
           call put('kiss_release_d1', c%diagnostics%release_d1, '1')
@@ -304,7 +298,7 @@ contains
     character(len=:), allocatable :: dir, err, longest
     integer :: n
     logical :: ok
-    dir = config_output_dir(sim%cfg)
+    dir = sim%cfg%output_dir
     err = ''
     if (sim%dom%rank == 0) then
       err = directory_problem(dir)
@@ -340,7 +334,7 @@ contains
     logical :: ok
     integer :: k
     if (sim%cfg%output%overwrite .or. out%resumed) return
-    dir = config_output_dir(sim%cfg)
+    dir = sim%cfg%output_dir
     found = ''
     if (sim%dom%rank == 0) then
       do k = 1, size(RUN_FILES)
@@ -403,7 +397,7 @@ contains
     type(simulation_t), intent(in) :: sim
     character(len=:), allocatable :: path
     logical :: ok
-    path = config_output_dir(sim%cfg)//'/'//sim%cfg%name//'.finished'
+    path = sim%cfg%output_dir//'/'//sim%cfg%name//'.finished'
     ok = .true.
     if (sim%dom%rank == 0) ok = write_marker(path, itoa(sim%step))
     call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
@@ -495,7 +489,7 @@ contains
       if (ios == 0) flush (out%csv_unit, iostat=ios, iomsg=msg)
       ! rank 0 alone writes it: it ends the job (a full disk)
       if (ios /= 0) call fatal_local('cannot write the CSV file '''// &
-                                     config_output_dir(sim%cfg)//'/'//sim%cfg%name// &
+                                     sim%cfg%output_dir//'/'//sim%cfg%name// &
                                      '_diagnostics.csv'': '//trim(msg)//'; is the disk full?')
     end if
   end subroutine write_pair
@@ -522,9 +516,9 @@ contains
       call io_write_attribute(out%io, '/diagnostics', 'open_episode', merge(1, 0, e%in_episode))
       call put('kiss_enter', e%enter*dx, 'cm')
       call put('kiss_release', e%release*dx, 'cm')
-      call put('kiss_enter_cells', kiss_enter_cells(sim%cfg), '1')
+      call put('kiss_enter_cells', sim%lp%kiss_enter_cells, '1')
       call put('kiss_release_cells', sim%cfg%diagnostics%release_cells, '1')
-      call put('d1', pair_d1(sim%cfg), 'cm')
+      call put('d1', sim%lp%d1, 'cm')
       call put('gamma', gamma, '1')
       call put('dh', dh, '1')
       call put('t_ref', sim%cfg%run%t_ref, 's')

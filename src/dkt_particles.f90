@@ -23,10 +23,13 @@
 module dkt_particles
   use mpi_f08, only: MPI_Gatherv, MPI_Allgatherv, MPI_Bcast
   use dkt_kinds, only: wp, mpi_wp, pi, cs2
+  use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_rows_for, domain_edge_rows
   use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
   use dkt_collisions, only: collision_force_on
+  use dkt_errors, only: internal_error
+  use dkt_text, only: itoa
   implicit none
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
@@ -34,9 +37,6 @@ module dkt_particles
             particles_reduce_forces, particles_move, particles_solid_field, &
             particles_stable_substeps, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
             BB_HALFWAY, BB_YU, BB_BFL
-
-  integer, parameter :: MOTION_FREE = 1, MOTION_FIXED = 2, MOTION_PRESCRIBED = 3
-  integer, parameter :: BB_HALFWAY = 1, BB_YU = 2, BB_BFL = 3
 
   !> One rigid disk, lattice units.
   type :: particle_t
@@ -449,8 +449,10 @@ contains
           else
             fb = (fi + (2.0_wp*q - 1.0_wp)*fib + wall)/(2.0_wp*q)
           end if
-        case default
+        case (BB_HALFWAY)
           fb = fi + wall
+        case default
+          call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
         end select
         call lattice_set(f, i + ex(d), j + ey(d), db, fb)
         ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the Galilean-invariant
@@ -591,6 +593,9 @@ contains
             case (MOTION_PRESCRIBED)
               p%x = p%x + p%u*h
               p%y = p%y + p%v*h
+            case (MOTION_FIXED)
+            case default
+              call internal_error('particles_move: motion code '//itoa(p%motion))
             end select
           end do
           state = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]

@@ -4,12 +4,12 @@ module dkt_report
   use mpi_f08, only: MPI_Wtime
   use dkt_kinds, only: wp, i8
   use dkt_errors, only: warn
-  use dkt_config, only: config_output_dir, velocity_scale_source, dx_knob, compressibility_class
   use dkt_mrt, only: collision_describe
   use dkt_diagnostics, only: SQ_UNDAMPED
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
+  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
@@ -50,7 +50,7 @@ contains
       call log_line(trim(line))
       ! the weakly compressible error is O(Ma^2) (docs/model.md §1, "Mach-aware set-up")
       write (line, '(a,es10.3e2,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
-      line = trim(line)//' '//compressibility_class(lp%mach)
+      line = trim(line)//' '//lp%compressibility
       if (cfg%lbm%mach > 0.0_wp) then
         write (line, '(a,f8.5,a,es10.3e2,a)') trim(line)//'; tau = ', lp%tau, &
           ' from lbm.mach = ', cfg%lbm%mach, ' (acoustic scaling; lbm.tau not used)'
@@ -69,7 +69,7 @@ contains
         write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
           ' exceeds run.mach_limit = ', cfg%run%mach_limit, '; the guard will stop the run. '
         call warn(trim(line)//' The velocity scale comes from '// &
-                  velocity_scale_source(cfg)//': lower it, or '//dx_knob(cfg)// &
+                  lp%velocity_source//': lower it, or '//lp%dx_knob// &
                   ' or lower lbm.tau (both shrink dt)')
       end if
       write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
@@ -89,8 +89,9 @@ contains
       end if
       line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB ('// &
              trim(merge('one lattice, streamed in place', 'two lattices                  ', &
-                        cfg%lbm%streaming == 'in_place'))//'; populations stored in '// &
-             itoa(lattice_bytes(cfg%lbm%precision))//' bytes, lbm.precision = '// &
+                        cfg%lbm%streaming_kind == STREAMING_IN_PLACE))// &
+             '; populations stored in '//itoa(lattice_bytes(cfg%lbm%precision_kind))// &
+             ' bytes, lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
              fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
              trim(particles)//'; '//trim(window)
@@ -99,9 +100,10 @@ contains
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
              trim(cfg%domain%lower)//', upper end '//trim(cfg%domain%upper)
       if (sim%coll%forced) line = trim(line)//', body force'
-      if (any([cfg%domain%lower, cfg%domain%upper] == 'velocity')) &
+      if (any([cfg%domain%lower_kind, cfg%domain%upper_kind] == END_VELOCITY)) &
         line = trim(line)//', inlet '//trim(cfg%inlet%profile)
-      if (cfg%initial%flow /= 'rest') line = trim(line)//', initial '//trim(cfg%initial%flow)
+      if (cfg%initial%flow_kind /= FLOW_REST) &
+        line = trim(line)//', initial '//trim(cfg%initial%flow)
       if (sim%particles_on) then
         line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
                ', E7 '//trim(cfg%coupling%momentum)//', interior '// &
@@ -127,7 +129,7 @@ contains
       else
         line = 'fields at the end'
       end if
-      call log_line(trim(line)//' into '//config_output_dir(cfg)//'/'//cfg%name//'.h5')
+      call log_line(trim(line)//' into '//cfg%output_dir//'/'//cfg%name//'.h5')
     end associate
   end subroutine report_summary
 

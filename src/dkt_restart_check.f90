@@ -11,7 +11,6 @@ module dkt_restart_check
   use dkt_checkpoint, only: checkpoint_t
   use dkt_run_state, only: simulation_t
   use dkt_window, only: window_t, window_offset
-  use dkt_config, only: config_output_dir
   use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_get_real, io_dataset_dims
   use dkt_text, only: itoa, fmt_real
   implicit none
@@ -148,7 +147,7 @@ contains
       p = '/state_int counts no series sample, but a run with particles writes one at step 0'
       return
     end if
-    file = config_output_dir(sim%cfg)//'/'//sim%cfg%name//'.h5'
+    file = sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'
     inquire (file=file, exist=exists)
     call MPI_Allreduce(exists, everywhere, 1, MPI_LOGICAL, MPI_LAND, sim%dom%comm)
     if (.not. everywhere) return

@@ -18,7 +18,7 @@ module dkt_run
                         report_performance
   use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_resume, checkpoint_start, &
                                    checkpoint_due, checkpoint_finish, checkpoint_final, &
-                                   checkpoint_stop_message, checkpoint_interrupted
+                                   checkpoint_stop_message, checkpoint_interrupted, input_check_i
   implicit none
   private
   public :: run_t, run_setup, run_execute, run_finish
@@ -36,17 +36,19 @@ contains
   !! resume from the checkpoint `restart` (when not ''), print the start-up summary and open
   !! the output. `check` (--check) sets up all but the lattices, reports, and refuses what the
   !! run would refuse, writing nothing.
-  subroutine run_setup(run, cfg, lp, comm, restart, check)
+  subroutine run_setup(run, cfg, lp, comm, restart, check, input_check)
     type(run_t), intent(inout) :: run
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(in) :: lp
     type(MPI_Comm), intent(in) :: comm
     character(len=*), intent(in) :: restart
     logical, intent(in) :: check
+    !> the input layer's comparison of the input with the one stored in the checkpoint
+    procedure(input_check_i) :: input_check
     call simulation_setup(run%sim, cfg, lp, comm, lattices=.not. check)
     call output_check_dir(run%sim)
     if (len(restart) > 0 .and. .not. check) &
-      call checkpoint_resume(run%chk, run%out, run%sim, restart)
+      call checkpoint_resume(run%chk, run%out, run%sim, restart, input_check)
     call report_summary(run%sim)
     if (check) then
       if (len(restart) == 0) call output_check_existing(run%out, run%sim)

@@ -5,21 +5,22 @@ module dkt_simulation
   use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2
-  use dkt_errors, only: fatal_all
-  use dkt_config, only: config_t, lattice_params_t, window_bottom, kiss_thresholds, dx_knob, &
-                        largest_diameter
+  use dkt_errors, only: fatal_all, internal_error
+  use dkt_config, only: config_t, lattice_params_t
   use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_init, sweep_init, sweep_rows
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
                        lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
-  use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, &
-                          apply_open_ends, END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW
+  use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_particles, only: particles_init, particles_find_links, particles_bounce, &
                            particles_interior, particles_inner_save, particles_inner_write, &
-                           particles_reduce_forces, particles_move, &
-                           particles_stable_substeps, MOTION_FREE, MOTION_FIXED, &
-                           MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
+                           particles_reduce_forces, particles_move, particles_stable_substeps
+  use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
+                         MOTION_FIXED, MOTION_PRESCRIBED, &
+                         BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
+                         STREAMING_IN_PLACE, MOMENTUM_GALILEAN, INTERIOR_FLUID, FLOW_REST, &
+                         FLOW_TAYLOR_GREEN
   use dkt_diagnostics, only: guard_set_advice, pair_diag_init, pair_diag_update, pair_gaps
   use dkt_window, only: window_init, window_offset, window_follow, window_escaped
   use dkt_log, only: log_line, log_close
@@ -36,16 +37,6 @@ module dkt_simulation
 
 contains
 
-  integer function end_kind(name)
-    character(len=*), intent(in) :: name
-    select case (trim(name))
-    case ('periodic'); end_kind = END_PERIODIC
-    case ('velocity'); end_kind = END_VELOCITY
-    case ('outflow'); end_kind = END_OUTFLOW
-    case default; end_kind = END_WALL
-    end select
-  end function end_kind
-
   !> Decompose, check that the memory the run needs is there, allocate the two lattices and
   !! set the initial state. Every rank calls it; a decomposition that cannot work stops all
   !! ranks with the largest rank count that does, a run that needs more memory than a node
@@ -61,32 +52,30 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
-    real(wp) :: enter, release
     logical :: single, shifted
 
     sim%cfg = cfg
     sim%lp = lp
-    periodic_x = cfg%domain%sides == 'periodic'
-    periodic_y = cfg%domain%lower == 'periodic'
+    periodic_x = cfg%domain%sides_kind == END_PERIODIC
+    periodic_y = cfg%domain%lower_kind == END_PERIODIC
     sim%particles_on = lp%particles_on
     min_rows = MIN_SLAB_ROWS
     if (sim%particles_on) then
       ! a slab holds at least the largest particle plus its interpolation stencil
-      min_rows = max(min_rows, ceiling(largest_diameter(cfg) &
-                                       /lp%dx) + 4)
+      min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4)
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
     call check_memory(sim%cfg, sim%lp, sim%dom)
     with_lattices = .true.
     if (present(lattices)) with_lattices = lattices
-    call boundary_init(sim%bc, periodic_x, end_kind(cfg%domain%lower), &
-                       end_kind(cfg%domain%upper), lp%u_in_lb, cfg%inlet%profile == 'parabolic', &
+    call boundary_init(sim%bc, periodic_x, cfg%domain%lower_kind, cfg%domain%upper_kind, &
+                       lp%u_in_lb, cfg%inlet%profile_kind == PROFILE_PARABOLIC, &
                        cfg%inlet%ramp_time/lp%dt)
-    call collision_init(sim%coll, lp%s, cfg%lbm%collision == 'bgk', lp%force_lb)
+    call collision_init(sim%coll, lp%s, cfg%lbm%collision_kind == COLLISION_BGK, lp%force_lb)
     if (with_lattices) then
-      call lattice_precision(cfg%lbm%precision, single, shifted)
-      sim%in_place = cfg%lbm%streaming == 'in_place'
+      call lattice_precision(cfg%lbm%precision_kind, single, shifted)
+      sim%in_place = cfg%lbm%streaming_kind == STREAMING_IN_PLACE
       call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
       if (sim%in_place) then
         sim%f_next = sim%f
@@ -98,19 +87,16 @@ contains
     end if
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
-      associate (d1 => largest_diameter(cfg)/lp%dx)
-        call window_init(sim%win, window_bottom(cfg), cfg%window%below*d1, cfg%window%margin*d1)
+      associate (d1 => lp%largest_diameter/lp%dx)
+        call window_init(sim%win, lp%window_bottom, cfg%window%below*d1, cfg%window%margin*d1)
       end associate
     end if
     if (sim%particles_on) call setup_particles(sim)
     ! the guards' advice names the knob that sets dx in this scene, and s_q where it is the
     ! measured cause of a run-away flow
-    call guard_set_advice(dx_knob(cfg), sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
+    call guard_set_advice(lp%dx_knob, sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
     sim%pair_on = cfg%particles%count >= 2
-    if (sim%pair_on) then
-      call kiss_thresholds(cfg, enter, release)
-      call pair_diag_init(sim%pair, enter, release)
-    end if
+    if (sim%pair_on) call pair_diag_init(sim%pair, lp%kiss_enter, lp%kiss_release)
     sim%stopped_early = ''
   end subroutine simulation_setup
 
@@ -126,23 +112,25 @@ contains
     n = sim%cfg%particles%count
     allocate (motion(n))
     do k = 1, n
-      select case (trim(sim%cfg%particles%motion(k)))
-      case ('fixed'); motion(k) = MOTION_FIXED
-      case ('prescribed'); motion(k) = MOTION_PRESCRIBED
-      case default; motion(k) = MOTION_FREE
+      motion(k) = sim%cfg%particles%motion_kind(k)
+      select case (motion(k))
+      case (MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED)
+      case default
+        call internal_error('setup_particles: particles.motion code '//itoa(motion(k)))
       end select
     end do
-    select case (trim(sim%cfg%coupling%bounce_back))
-    case ('halfway'); scheme = BB_HALFWAY
-    case ('bfl'); scheme = BB_BFL
-    case default; scheme = BB_YU
+    scheme = sim%cfg%coupling%bounce_back_kind
+    select case (scheme)
+    case (BB_HALFWAY, BB_YU, BB_BFL)
+    case default
+      call internal_error('setup_particles: coupling.bounce_back code '//itoa(scheme))
     end select
     ! lattice units throughout (lattice_from); y counts from the window's lower end at t = 0
     associate (p => sim%lp%particles, c => sim%cfg%collision)
       call particles_init(sim%parts, sim%dom, p%x, p%y, p%r, p%u, p%v, p%omega, p%density, &
-                          motion, scheme, sim%cfg%coupling%momentum == 'galilean', p%gravity, &
-                          p%stiffness, p%stiffness_overlap, c%range, c%substeps, &
-                          sim%cfg%coupling%interior == 'fluid')
+                          motion, scheme, sim%cfg%coupling%momentum_kind == MOMENTUM_GALILEAN, &
+                          p%gravity, p%stiffness, p%stiffness_overlap, c%range, c%substeps, &
+                          sim%cfg%coupling%interior_kind == INTERIOR_FLUID)
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
     ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so;
@@ -176,8 +164,8 @@ contains
     integer :: x, j, jg
     real(wp) :: kx, ky, u0, xc, yc, ux, uy, p
     ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
-    select case (trim(sim%cfg%initial%flow))
-    case ('taylor_green')
+    select case (sim%cfg%initial%flow_kind)
+    case (FLOW_TAYLOR_GREEN)
       ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
       kx = 2.0_wp*pi/real(sim%lp%nx, wp)
       ky = 2.0_wp*pi/real(sim%lp%ny, wp)
@@ -193,12 +181,14 @@ contains
           call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp + p/cs2, ux, uy))
         end do
       end do
-    case default
+    case (FLOW_REST)
       do j = 1, sim%dom%nyl
         do x = 1, sim%lp%nx
           call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp, 0.0_wp, 0.0_wp))
         end do
       end do
+    case default
+      call internal_error('initialise: initial.flow code '//itoa(sim%cfg%initial%flow_kind))
     end select
   end subroutine initialise
 
@@ -369,9 +359,9 @@ contains
     logical :: walls_x, wall_lo, wall_hi, open_lo, open_hi
     nx = real(sim%lp%nx, wp)
     ny = real(sim%lp%ny, wp)
-    walls_x = sim%cfg%domain%sides == 'wall'
-    wall_lo = sim%cfg%domain%lower == 'wall' .and. .not. sim%window_on
-    wall_hi = sim%cfg%domain%upper == 'wall' .and. .not. sim%window_on
+    walls_x = sim%cfg%domain%sides_kind == END_WALL
+    wall_lo = sim%cfg%domain%lower_kind == END_WALL .and. .not. sim%window_on
+    wall_hi = sim%cfg%domain%upper_kind == END_WALL .and. .not. sim%window_on
     ! (periodic ends take no particles: the input refuses them)
     associate (rest => ends_at_rest(sim))
       open_lo = .not. (rest(1) .or. sim%window_on)

@@ -8,7 +8,11 @@
 !> weight (bounce-back pairs, periodic images, halo rows, the window's row shift) move stored
 !> values unchanged in either form.
 module dkt_store
-  use dkt_kinds, only: wp, sp, PRECISION_NAMES
+  use dkt_kinds, only: wp, sp
+  use dkt_choices, only: PRECISION_NAMES, PRECISION_DOUBLE, PRECISION_SINGLE, &
+                         PRECISION_SINGLE_UNSHIFTED
+  use dkt_errors, only: internal_error
+  use dkt_text, only: itoa
   use dkt_lattice, only: w
   implicit none
   private
@@ -48,11 +52,22 @@ contains
   end subroutine lattice_allocate
 
   !> The storage lbm.precision asks for: single (4 bytes) and shifted (f_i - w_i stored).
-  pure subroutine lattice_precision(name, single, shifted)
-    character(len=*), intent(in) :: name !! 'double', 'single' or 'single_unshifted'
+  subroutine lattice_precision(code, single, shifted)
+    integer, intent(in) :: code !! PRECISION_DOUBLE, PRECISION_SINGLE or PRECISION_SINGLE_UNSHIFTED
     logical, intent(out) :: single, shifted
-    single = name == 'single' .or. name == 'single_unshifted'
-    shifted = name == 'single'
+    select case (code)
+    case (PRECISION_DOUBLE)
+      single = .false.
+      shifted = .false.
+    case (PRECISION_SINGLE)
+      single = .true.
+      shifted = .true.
+    case (PRECISION_SINGLE_UNSHIFTED)
+      single = .true.
+      shifted = .false.
+    case default
+      call internal_error('lattice_precision: lbm.precision code '//itoa(code))
+    end select
   end subroutine lattice_precision
 
   !> The lbm.precision value that gives the storage of lat.
@@ -69,11 +84,17 @@ contains
   end function lattice_precision_name
 
   !> Bytes of one stored population: 8 for 'double', 4 for the single forms.
-  pure integer function lattice_bytes(name) result(b)
-    character(len=*), intent(in) :: name !! lbm.precision
-    logical :: single, shifted
-    call lattice_precision(name, single, shifted)
-    b = merge(storage_size(1.0_sp), storage_size(1.0_wp), single)/8
+  pure integer function lattice_bytes(code) result(b)
+    integer, intent(in) :: code !! lbm.precision as its PRECISION_* code
+    select case (code)
+    case (PRECISION_DOUBLE)
+      b = storage_size(1.0_wp)/8
+    case (PRECISION_SINGLE, PRECISION_SINGLE_UNSHIFTED)
+      b = storage_size(1.0_sp)/8
+    case default
+      ! pure (the memory formula is): the one stop a pure procedure may make
+      error stop 'dktlbm: error: internal error: lattice_bytes: unknown lbm.precision code'
+    end select
   end function lattice_bytes
 
   pure logical function lattice_allocated(lat)

@@ -10,7 +10,7 @@ program dktlbm
                         config_load, config_to_namelist, print_help, &
                         config_check_text
   use dkt_run, only: run_t, run_setup, run_execute, run_finish
-  use dkt_config_restart, only: restart_changes_problem
+  use dkt_config_restart, only: restart_changes_problem, restart_input_check
   use dkt_version, only: dkt_version_string, dkt_git_revision
   implicit none
 
@@ -56,7 +56,7 @@ program dktlbm
 
   ! --check sets up all but the lattices (the memory check included), reports and refuses
   ! what the run would refuse
-  call run_setup(run, cfg, lp, MPI_COMM_WORLD, cli%restart, cli%check)
+  call run_setup(run, cfg, lp, MPI_COMM_WORLD, cli%restart, cli%check, restart_input_check)
   if (.not. cli%check) call run_execute(run)
   call run_finish(run)
   call MPI_Finalize()

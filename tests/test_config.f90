@@ -12,6 +12,14 @@ program test_config
                         config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES, &
                         particle_cfg_t
   use dkt_text, only: printable
+  use dkt_registry, only: registry_t, KEY_CHOICE
+  use dkt_config, only: config_registry, config_choices
+  use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, COLLISION_MRT, &
+                         COLLISION_BGK, STREAMING_IN_PLACE, STREAMING_TWO_LATTICE, &
+                         PRECISION_DOUBLE, PRECISION_SINGLE, PROFILE_UNIFORM, &
+                         PROFILE_PARABOLIC, FLOW_REST, FLOW_TAYLOR_GREEN, MOTION_FREE, &
+                         MOTION_PRESCRIBED, BB_YU, BB_BFL, MOMENTUM_PAPER, MOMENTUM_GALILEAN, &
+                         INTERIOR_SOLID, INTERIOR_FLUID
   implicit none
 
   character(len=*), parameter :: NL = new_line('a')
@@ -50,6 +58,7 @@ program test_config
   call test_nml_errors()
   call test_derived_and_text_errors()
   call test_input_defects()
+  call test_choice_codes()
 
   write (*, '(i0,a,i0,a)') n_pass, ' passed, ', n_fail, ' failed'
   if (n_fail > 0) error stop 1
@@ -1232,5 +1241,107 @@ contains
                printable('mu = 1 '//char(194)//char(181)//'m') == &
                'mu = 1 '//char(194)//char(181)//'m')
   end subroutine test_input_defects
+
+  !> Each choice reaches the program as its named constant: config_load sets the constant of
+  !! every choice from its text (defaults, file, any case), and every value the input allows
+  !! for a choice key has a constant of its own, so no allowed value can reach a `select case`
+  !! as an unknown code.
+  subroutine test_choice_codes()
+    type(config_t) :: cfg
+    type(config_t), target :: c
+    type(registry_t) :: reg
+    integer :: j, a, b, n
+    integer, allocatable :: codes(:)
+    logical :: ok, good
+    call load_ok('defaults as constants', '', cfg)
+    call check('default choices as constants', &
+               all([cfg%domain%sides_kind, cfg%domain%lower_kind, cfg%domain%upper_kind] == &
+                   END_WALL) .and. &
+               cfg%lbm%collision_kind == COLLISION_MRT .and. &
+               cfg%lbm%streaming_kind == STREAMING_IN_PLACE .and. &
+               cfg%lbm%precision_kind == PRECISION_DOUBLE .and. &
+               cfg%inlet%profile_kind == PROFILE_PARABOLIC .and. &
+               cfg%initial%flow_kind == FLOW_REST .and. cfg%coupling%bounce_back_kind == BB_YU &
+               .and. cfg%coupling%momentum_kind == MOMENTUM_PAPER .and. &
+               cfg%coupling%interior_kind == INTERIOR_SOLID)
+    call load_ok('choices in any case', '&lbm collision = "BGK", streaming = "two_lattice", '// &
+                 'precision = "single" / &coupling bounce_back = "Bfl", momentum = '// &
+                 '"galilean", interior = "fluid" /', cfg)
+    call check('choices of the file as constants', cfg%lbm%collision_kind == COLLISION_BGK &
+               .and. cfg%lbm%streaming_kind == STREAMING_TWO_LATTICE .and. &
+               cfg%lbm%precision_kind == PRECISION_SINGLE .and. &
+               cfg%coupling%bounce_back_kind == BB_BFL .and. &
+               cfg%coupling%momentum_kind == MOMENTUM_GALILEAN .and. &
+               cfg%coupling%interior_kind == INTERIOR_FLUID)
+    call load_ok('open ends', '&domain lower = "velocity", upper = "outflow" / '// &
+                 '&inlet velocity = 0.1, profile = "uniform" /', cfg)
+    call check('ends and profile as constants', cfg%domain%lower_kind == END_VELOCITY .and. &
+               cfg%domain%upper_kind == END_OUTFLOW .and. &
+               cfg%inlet%profile_kind == PROFILE_UNIFORM)
+    call load_ok('periodic Taylor-Green', '&domain sides = "periodic", lower = "periodic", '// &
+                 'upper = "periodic" / &initial flow = "taylor_green", velocity = 0.1 /', cfg)
+    call check('periodic and taylor_green as constants', &
+               all([cfg%domain%sides_kind, cfg%domain%lower_kind, cfg%domain%upper_kind] == &
+                   END_PERIODIC) .and. &
+               cfg%initial%flow_kind == FLOW_TAYLOR_GREEN)
+    call load_ok('a prescribed particle', '&particles count = 2, x = 0.5, 1.5, y = 2.5, 2.5, '// &
+                 'motion(2) = "prescribed" /', cfg)
+    call check('motion per particle as constants', size(cfg%particles%motion_kind) == 2 .and. &
+               all(cfg%particles%motion_kind == [MOTION_FREE, MOTION_PRESCRIBED]))
+    ! every allowed value of every choice key, set in turn: a constant > 0, one per value
+    ok = .true.
+    n = 0
+    call config_registry(c, reg)
+    do j = 1, size(reg%keys)
+      associate (k => reg%keys(j))
+        ! pair.upper is turned into particle positions by the input itself
+        if (k%kind /= KEY_CHOICE .or. (k%group == 'pair' .and. k%name == 'upper')) cycle
+        allocate (codes(0))
+        a = 1
+        do while (a <= len(k%choices))
+          b = index(k%choices(a:)//' ', ' ') + a - 1
+          if (k%n > 0) then
+            k%sa(1)%s = k%choices(a:b - 1)
+          else
+            k%s = k%choices(a:b - 1)
+          end if
+          call config_choices(c)
+          codes = [codes, choice_kind_of(c, k%group//'.'//k%name)]
+          a = b + 1
+        end do
+        good = all(codes > 0)
+        do a = 1, size(codes)
+          if (count(codes == codes(a)) /= 1) good = .false.
+        end do
+        if (.not. good) write (*, '(a)') '  no constant of its own: '//k%group//'.'//k%name
+        ok = ok .and. good
+        n = n + 1
+        deallocate (codes)
+      end associate
+    end do
+    call check('every allowed choice has a constant of its own (12 keys)', ok .and. n == 12)
+  end subroutine test_choice_codes
+
+  !> The constant config_choices set for the choice key `key` of `c` (its first element for
+  !! particles.motion).
+  integer function choice_kind_of(c, key) result(code)
+    type(config_t), intent(in) :: c
+    character(len=*), intent(in) :: key
+    select case (key)
+    case ('domain.sides'); code = c%domain%sides_kind
+    case ('domain.lower'); code = c%domain%lower_kind
+    case ('domain.upper'); code = c%domain%upper_kind
+    case ('lbm.collision'); code = c%lbm%collision_kind
+    case ('lbm.streaming'); code = c%lbm%streaming_kind
+    case ('lbm.precision'); code = c%lbm%precision_kind
+    case ('inlet.profile'); code = c%inlet%profile_kind
+    case ('initial.flow'); code = c%initial%flow_kind
+    case ('particles.motion'); code = c%particles%motion_kind(1)
+    case ('coupling.bounce_back'); code = c%coupling%bounce_back_kind
+    case ('coupling.momentum'); code = c%coupling%momentum_kind
+    case ('coupling.interior'); code = c%coupling%interior_kind
+    case default; code = -1 ! a choice key this test does not know: it fails
+    end select
+  end function choice_kind_of
 
 end program test_config
