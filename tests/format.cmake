@@ -1,5 +1,6 @@
 # Tree checks (label unit): the Fortran sources are formatted as fprettify with .fprettify.ini
-# formats them, no Fortran line is longer than 100 characters, and the Python code is ruff-clean.
+# formats them, no Fortran line is longer than 100 characters, the Python code is ruff-clean, and
+# the sources keep the structure limits (tools/check_structure.py).
 #
 # This file has two roles. Included from tests/CMakeLists.txt it registers the tests; run as
 #   cmake -DCHECK=fortran|python -DPYTHON=<python3> -DROOT=<source dir> -P tests/format.cmake
@@ -17,6 +18,9 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
       "-DROOT=${PROJECT_SOURCE_DIR}" -P "${CMAKE_CURRENT_LIST_FILE}")
   set_tests_properties(format_fortran_fprettify lint_python_ruff PROPERTIES
     LABELS unit TIMEOUT 120)
+  # the structure limits of docs/design.md: files within 800 lines, procedures within 150,
+  # input modules used outside the input layer only for their types (tools/check_structure.py)
+  dkt_add_pytest(NAME structure_limits FILE tests/test_structure.py LABELS unit TIMEOUT 120)
   return()
 endif()
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Check the limits that keep the Fortran sources readable (docs/design.md, "Structure"):
+"""Check the limits that keep the Fortran sources readable (docs/design.md, "Modules"):
 
 - no source file over 800 lines;
 - no procedure over 150 lines (a host procedure counts with the procedures it contains);
