@@ -167,8 +167,8 @@ contains
   !! and the diagonal (3, 4) at exactly R_i + R_j + xi = 5, 2^-40 inside and 2^-40 beyond it
   !! (distances exact in binary); the first disk of a pair sits 2^-14 from a cell's edge, so
   !! that its partner lies in the next cell, which a query whose reach falls short by more than
-  !! that misses. With strays, disk 7 at NaN and disk 8 at y = 1e200. Every disk's force from the disks
-  !! its cells list equals, bit for bit, the force from all disks.
+  !! that misses. With strays, disk 7 at NaN and disk 8 at y = 1e200. Every disk's force from
+  !! the disks its cells list equals, bit for bit, the force from all disks.
   subroutine cells_same_bits(strays)
     logical, intent(in) :: strays
     integer, parameter :: n = 600
