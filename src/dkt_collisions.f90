@@ -42,8 +42,12 @@ contains
   !> The contact force (fx, fy) on particle k alone: cx(k), cy(k) of collision_forces with the
   !! same arguments, summed in the same order (the pairs (a, k) for a < k, then (k, b) for b > k,
   !! then the walls), so with the same bits, in time linear in the number of particles.
+  !! With near (ascending indices; k may be among them), only the pairs of k with the particles
+  !! listed are summed, in the same order: the same bits when near holds every particle within
+  !! the range of k, because a pair beyond the range adds a zero to a sum that starts at +0 and
+  !! so is never -0 (in round-to-nearest x + (+-0) = x for x /= -0).
   pure subroutine collision_force_on(k, x, y, r, width, height, end_walls, eps, eps_overlap, &
-                                     range, fx, fy)
+                                     range, fx, fy, near)
     integer, intent(in) :: k                    !! the particle
     real(wp), intent(in) :: x(:), y(:), r(:)    !! centres and radii
     real(wp), intent(in) :: width, height       !! channel size
@@ -51,22 +55,38 @@ contains
     real(wp), intent(in) :: eps, eps_overlap    !! eps_p and eps'_p of E10
     real(wp), intent(in) :: range               !! threshold xi of E10
     real(wp), intent(out) :: fx, fy             !! force on particle k
-    integer :: a
-    real(wp) :: gx, gy
+    integer, intent(in), optional :: near(:)    !! the candidates, ascending (default: all)
+    integer :: a, m
     fx = 0.0_wp
     fy = 0.0_wp
-    do a = 1, k - 1
-      call repel(x(a), y(a), x(k), y(k), r(a) + r(k), eps, eps_overlap, range, gx, gy)
-      fx = fx - gx
-      fy = fy - gy
-    end do
-    do a = k + 1, size(x)
-      call repel(x(k), y(k), x(a), y(a), r(k) + r(a), eps, eps_overlap, range, gx, gy)
-      fx = fx + gx
-      fy = fy + gy
-    end do
+    if (present(near)) then
+      do m = 1, size(near)
+        call add_pair(near(m), fx, fy)
+      end do
+    else
+      do a = 1, size(x)
+        call add_pair(a, fx, fy)
+      end do
+    end if
     call add_wall_forces(x(k), y(k), r(k), width, height, end_walls, eps, eps_overlap, range, &
                          fx, fy)
+  contains
+    !> The force of particle a on k, with the arguments of repel in the order collision_forces
+    !! gives them (the lower index first).
+    pure subroutine add_pair(a, fx, fy)
+      integer, intent(in) :: a
+      real(wp), intent(inout) :: fx, fy
+      real(wp) :: gx, gy
+      if (a < k) then
+        call repel(x(a), y(a), x(k), y(k), r(a) + r(k), eps, eps_overlap, range, gx, gy)
+        fx = fx - gx
+        fy = fy - gy
+      else if (a > k) then
+        call repel(x(k), y(k), x(a), y(a), r(k) + r(a), eps, eps_overlap, range, gx, gy)
+        fx = fx + gx
+        fy = fy + gy
+      end if
+    end subroutine add_pair
   end subroutine collision_force_on
 
   !> Add to (fx, fy) the force of each wall on the disk at (x, y) of radius r, one wall after

@@ -30,6 +30,7 @@ module dkt_particles
   use dkt_collisions, only: collision_force_on
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
+  use dkt_cells, only: cells_t, cells_build, cells_near, cells_box
   implicit none
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
@@ -69,6 +70,10 @@ module dkt_particles
     real(wp) :: stiffness = 1, stiffness_overlap = 1 !! eps_p, eps'_p, lattice units (E10)
     real(wp) :: range = 1               !! threshold xi (E10), lattice spacings
     integer :: substeps = 1
+    real(wp) :: rmax = 0                !! the largest radius
+    !> the centres in cells, for the contact forces (cells of side 2 rmax + range, the centres
+    !! at the start of the step) or for the nodes inside disks (side 2 rmax, the centres now)
+    type(cells_t) :: cells
     ! boundary links of this slab, ordered by particle, row, column, direction
     integer :: nlinks = 0
     integer, allocatable :: lp(:), lx(:), ly(:), ld(:)  !! particle, column, local row, direction
@@ -120,6 +125,7 @@ contains
     ps%stiffness_overlap = stiffness_overlap
     ps%range = range
     ps%substeps = substeps
+    ps%rmax = max(0.0_wp, maxval(r))
     allocate (ps%rows(3, dom%nyl, ps%n))
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0))
     if (present(fluid_interior)) ps%fluid_interior = fluid_interior
@@ -240,20 +246,42 @@ contains
   end function node_density
 
   !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
+  !! Only the disks of the cells within rmax of the node are tested: ps%cells must hold the
+  !! present centres (place_for_nodes).
   pure logical function is_fluid(ps, dom, i, jg)
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: i, jg
-    integer :: k
+    integer :: k, l, i1, i2, j1, j2, jc
+    real(wp) :: px, py
     is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
     if (.not. is_fluid) return
-    do k = 1, ps%n
-      if (inside(ps%p(k), i - 0.5_wp, jg - 0.5_wp)) then
-        is_fluid = .false.
-        return
-      end if
-    end do
+    px = i - 0.5_wp
+    py = jg - 0.5_wp
+    call cells_box(ps%cells, px, py, ps%rmax, i1, i2, j1, j2)
+    if (i1 == 0) then
+      is_fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
+      return
+    end if
+    associate (c => ps%cells)
+      ! the cells i1..i2 of a row of cells hold one run of c%items
+      do jc = j1, j2
+        do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
+          if (inside(ps%p(c%items(l)), px, py)) is_fluid = .false.
+        end do
+      end do
+      do l = 1, size(c%stray)
+        if (inside(ps%p(c%stray(l)), px, py)) is_fluid = .false.
+      end do
+    end associate
   end function is_fluid
+
+  !> Place the present centres in cells for is_fluid: a node lies only in disks whose centres
+  !! are within rmax of it.
+  subroutine place_for_nodes(ps)
+    type(particles_t), intent(inout) :: ps
+    call cells_build(ps%cells, ps%p%x, ps%p%y, 2.0_wp*ps%rmax)
+  end subroutine place_for_nodes
 
   !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
   !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid
@@ -263,6 +291,7 @@ contains
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
     real(wp) :: px, py
+    call place_for_nodes(ps)
     n = 0
     ps%ninner = 0
     cap = max(16, size(ps%lp))
@@ -562,22 +591,28 @@ contains
     logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall (E11 against it)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     type(particle_t), allocatable :: old(:)
-    real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), state(10)
-    integer :: k, s, own
+    real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), rs(ps%n), state(10)
+    integer :: k, s, own, m
+    integer, allocatable :: near(:)
     allocate (old, source=ps%p)
     h = 1.0_wp/ps%substeps
+    ! contact partners (E10) lie within r_k + rmax + range of a centre
+    call cells_build(ps%cells, old%x, old%y, 2.0_wp*ps%rmax + ps%range)
+    ! contiguous copies, made once: a component array old%r passed on would be copied per call
+    xs = old%x
+    ys = old%y
+    rs = old%r
     do k = 1, ps%n
       own = owner_of(old(k), dom)
       if (own == dom%rank .or. .not. moving) then
         associate (p => ps%p(k))
           do s = 1, ps%substeps
-            xs = old%x
-            ys = old%y
             xs(k) = p%x
             ys(k) = p%y
-            call collision_force_on(k, xs, ys, old%r, real(dom%nx, wp), real(dom%ny, wp), &
+            call cells_near(ps%cells, xs(k), ys(k), old(k)%r + ps%rmax + ps%range, near, m)
+            call collision_force_on(k, xs, ys, rs, real(dom%nx, wp), real(dom%ny, wp), &
                                     end_walls, ps%stiffness, ps%stiffness_overlap, ps%range, &
-                                    p%cx, p%cy)
+                                    p%cx, p%cy, near(1:m))
             select case (p%motion)
             case (MOTION_FREE)
               ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
@@ -599,6 +634,8 @@ contains
             end select
           end do
           state = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
+          xs(k) = old(k)%x
+          ys(k) = old(k)%y
         end associate
       end if
       if (.not. moving) cycle
@@ -609,6 +646,7 @@ contains
       end associate
     end do
     ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
+    call place_for_nodes(ps)
     if (moving .and. .not. ps%fluid_interior) call refill(ps, old, dom, f)
   end subroutine particles_move
 
@@ -671,11 +709,12 @@ contains
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(out) :: id(:, :)
-    integer :: k, i, j
+    integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
-      do j = 1, dom%nyl
-        do i = 1, dom%nx
+      call box(ps%p(k), dom, i1, i2, j1, j2)
+      do j = j1, j2
+        do i = i1, i2
           if (inside(ps%p(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = k
         end do
       end do

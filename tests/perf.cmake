@@ -47,3 +47,13 @@ if(Python3_FOUND)
     RUN_SERIAL TRUE
     ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1;PYTHONPATH=${PROJECT_SOURCE_DIR}/postproc")
 endif()
+
+# Particle cost per step (tests/perf/bench_particles.f90): the contact forces and the boundary-
+# link search of a crowd of disks, timed apart, median of 5. Built with the rest so that it
+# stays compiling; run it by hand, e.g. `build/tests/bench_particles 1000 10000` (docs/performance.md).
+add_executable(bench_particles "${CMAKE_CURRENT_SOURCE_DIR}/perf/bench_particles.f90")
+target_link_libraries(bench_particles PRIVATE dktlbm_core)
+set_target_properties(bench_particles PROPERTIES
+  RUNTIME_OUTPUT_DIRECTORY "${CMAKE_CURRENT_BINARY_DIR}"
+  Fortran_MODULE_DIRECTORY "${CMAKE_BINARY_DIR}/mod/tests/bench_particles")
+dkt_set_fortran_flags(bench_particles)

@@ -22,6 +22,11 @@ dkt_add_pytest(NAME interior FILE tests/test_interior.py LABELS regression mpi P
 dkt_add_pytest(NAME interior_density_ratio FILE tests/test_interior.py LABELS regression long
   PROCESSORS 2 TIMEOUT 900 ARGS -k "barely_denser")
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
+# the link search through the cell list against a search over every disk, on 1 rank and across
+# an uneven split of 3 ranks (90 rows)
+dkt_add_fortran_test(NAME test_cells SOURCES dkt_check.f90 test_cells.f90 LABELS unit)
+dkt_add_fortran_test(NAME test_cells_3ranks SOURCES dkt_check.f90 test_cells.f90 LABELS unit mpi
+  RANKS 3)
 if(DKTLBM_SANITIZE)
   # Sanitized ranks are a few times slower, and more ranks than cores (3 or 4 on CI's 2) wait
   # on each other some 25 times longer: the matrix runs its small cases on 1 and 2 ranks (the

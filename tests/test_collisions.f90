@@ -12,10 +12,20 @@
 !>  - collision_force_on(k) gives particle k's force of collision_forces with the same bits, in a
 !>    crowd of disks some touching, some overlapping, some near the walls, for each choice of
 !>    end walls.
+!>  - the cell list (dkt_cells) finds every contact partner: collision_force_on over the disks
+!>    cells_near returns has the bits of the sum over all disks, for a random crowd of disks of
+!>    radius 1..2 with pairs of the largest disks placed exactly at, just inside and just
+!>    beyond R_i + R_j + xi (the reach of a query: a shorter reach loses them), and for a crowd
+!>    with a disk at NaN and one at 1e200 (the sum over all is NaN there: so must it be); and
+!>    the cells do prune (most queries return a small part of the crowd).
 program test_collisions
   use dkt_kinds, only: wp
   use dkt_check, only: check, finish
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_exceptions, only: ieee_invalid, ieee_overflow, ieee_set_flag
+  use, intrinsic :: ieee_exceptions, only: ieee_get_halting_mode, ieee_set_halting_mode
   use dkt_collisions, only: collision_forces, collision_force_on, repel
+  use dkt_cells, only: cells_t, cells_build, cells_near
   implicit none
   real(wp) :: cx(2), cy(2), x(2), y(2), r(2)
   real(wp), parameter :: eps = 2.0_wp, eps_ov = 0.5_wp, xi = 1.0_wp, big = 1.0e6_wp
@@ -68,6 +78,8 @@ program test_collisions
   call one_particle_same_bits(NEITHER)
   call one_particle_same_bits(LOWER)
   call one_particle_same_bits(UPPER)
+  call cells_same_bits(.false.)
+  call cells_same_bits(.true.)
 
   call finish()
 
@@ -141,12 +153,7 @@ contains
     real(wp) :: px(n), py(n), pr(n), fx(n), fy(n), gx, gy
     integer :: k, bad
     call random_seed()
-    call random_number(px)
-    call random_number(py)
-    call random_number(pr)
-    px = 40.0_wp*px
-    py = 40.0_wp*py
-    pr = 2.0_wp + pr
+    call random_crowd(40.0_wp, 2.0_wp, px, py, pr)
     call collision_forces(px, py, pr, 40.0_wp, 40.0_wp, ends, eps, eps_ov, xi, fx, fy)
     bad = 0
     do k = 1, n
@@ -156,5 +163,90 @@ contains
     call check('one particle''s force has the bits of collision_forces', bad == 0, real(bad, wp))
     call check('the crowd is in contact', count(fx /= 0.0_wp) > n/2, real(count(fx /= 0.0_wp), wp))
   end subroutine one_particle_same_bits
+
+  !> 600 disks of radius 1..2 at random in a 200 x 200 box, one at the origin (so the cells,
+  !! of side 2 R_max + xi = 5, start there), and 30 pairs of disks of radius 2 set along x, y
+  !! and the diagonal (3, 4) at exactly R_i + R_j + xi = 5, 2^-40 inside and 2^-40 beyond it
+  !! (distances exact in binary); the first disk of a pair sits 2^-14 from a cell's edge, so
+  !! that its partner lies in the next cell, which a query whose reach falls short by more than
+  !! that misses. With strays, disk 7 at NaN and disk 8 at y = 1e200. Every disk's force from
+  !! the disks its cells list equals, bit for bit, the force from all disks.
+  subroutine cells_same_bits(strays)
+    logical, intent(in) :: strays
+    integer, parameter :: n = 600
+    real(wp), parameter :: delta = 2.0_wp**(-40)
+    real(wp) :: px(n), py(n), pr(n), fx, fy, gx, gy, rmax, gap
+    type(cells_t) :: c
+    integer, allocatable :: near(:)
+    integer :: k, m, bad, few, at_edge, j, nan_forces
+    logical :: halt(2)
+    call random_crowd(200.0_wp, 1.0_wp, px, py, pr)
+    pr(1:60) = 2.0_wp
+    px(n) = 0.0_wp
+    py(n) = 0.0_wp
+    do j = 1, 60, 2
+      px(j) = 5.0_wp*anint(px(j)/5.0_wp) + 2.0_wp**(-14)
+      py(j) = 5.0_wp*anint(py(j)/5.0_wp) - 2.0_wp**(-14)
+      gap = 0.0_wp
+      if (mod(j/2, 3) == 1) gap = -delta ! inside the range
+      if (mod(j/2, 3) == 2) gap = delta  ! beyond it
+      select case (mod(j/6, 3))
+      case (0); px(j + 1) = px(j) + 5.0_wp + gap; py(j + 1) = py(j)
+      case (1); px(j + 1) = px(j); py(j + 1) = py(j) - 5.0_wp - gap
+      case default; px(j + 1) = px(j) + 3.0_wp; py(j + 1) = py(j) + 4.0_wp + gap
+      end select
+    end do
+    if (strays) then
+      px(7) = ieee_value(px(7), ieee_quiet_nan)
+      py(8) = 1.0e200_wp
+      ! the NaN and the overflow are the point here: no trap (debug builds trap both)
+      call ieee_get_halting_mode([ieee_invalid, ieee_overflow], halt)
+      call ieee_set_halting_mode([ieee_invalid, ieee_overflow], .false.)
+    end if
+    rmax = maxval(pr)
+    call cells_build(c, px, py, 2.0_wp*rmax + xi)
+    bad = 0
+    few = 0
+    at_edge = 0
+    nan_forces = 0
+    do k = 1, n
+      call cells_near(c, px(k), py(k), pr(k) + rmax + xi, near, m)
+      if (m < n/10) few = few + 1
+      call collision_force_on(k, px, py, pr, 200.0_wp, 200.0_wp, CLOSED, eps, eps_ov, xi, gx, gy)
+      call collision_force_on(k, px, py, pr, 200.0_wp, 200.0_wp, CLOSED, eps, eps_ov, xi, fx, &
+                              fy, near(1:m))
+      if (gx /= gx) nan_forces = nan_forces + 1
+      if (transfer(fx, 1_8) /= transfer(gx, 1_8) .or. transfer(fy, 1_8) /= transfer(gy, 1_8)) &
+        bad = bad + 1
+      if (k <= 60 .and. mod((k - 1)/2, 3) == 1 .and. (gx /= 0.0_wp .or. gy /= 0.0_wp)) &
+        at_edge = at_edge + 1
+    end do
+    if (strays) then
+      call ieee_set_flag([ieee_invalid, ieee_overflow], .false.)
+      call ieee_set_halting_mode([ieee_invalid, ieee_overflow], halt)
+    end if
+    call check('cells: every disk''s contact force has the bits of the sum over all disks', &
+               bad == 0, real(bad, wp))
+    call check('cells: a query returns a small part of the crowd', few > n/2, real(few, wp))
+    if (strays) then
+      call check('cells: a disk at NaN makes every force NaN, as the sum over all does', &
+                 nan_forces == n, real(nan_forces, wp))
+    else
+      call check('cells: the pairs just inside the range are in contact', at_edge == 20, &
+                 real(at_edge, wp))
+    end if
+  end subroutine cells_same_bits
+
+  !> Disks at random in a side x side box, of radius r0..r0 + 1.
+  subroutine random_crowd(side, r0, px, py, pr)
+    real(wp), intent(in) :: side, r0
+    real(wp), intent(out) :: px(:), py(:), pr(:)
+    call random_number(px)
+    call random_number(py)
+    call random_number(pr)
+    px = side*px
+    py = side*py
+    pr = r0 + pr
+  end subroutine random_crowd
 
 end program test_collisions
