@@ -52,7 +52,9 @@ def small_disk(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Path]
     disk.mkdir()
     mount = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={request.param}m", "tmpfs",
                             str(disk)], capture_output=True, text=True)
-    assert mount.returncode == 0, f"cannot mount a tmpfs as root: {mount.stderr}"
+    if mount.returncode != 0:
+        # root in a container without the right to mount (no CAP_SYS_ADMIN)
+        pytest.skip(f"root cannot mount a tmpfs here: {mount.stderr.strip()}")
     try:
         yield disk
     finally:
