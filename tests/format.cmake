@@ -1,6 +1,7 @@
 # Tree checks (label unit): the Fortran sources are formatted as fprettify with .fprettify.ini
 # formats them, no Fortran line is longer than 100 characters, the Python code is ruff-clean, and
-# the sources keep the structure limits (tools/check_structure.py).
+# the sources keep the structure limits (tools/check_structure.py), and docs/design.md draws
+# the module graph the `use` statements give (tests/test_design_graph.py).
 #
 # This file has two roles. Included from tests/CMakeLists.txt it registers the tests; run as
 #   cmake -DCHECK=fortran|python -DPYTHON=<python3> -DROOT=<source dir> -P tests/format.cmake
@@ -21,6 +22,9 @@ if(NOT CMAKE_SCRIPT_MODE_FILE)
   # the structure limits of docs/design.md: files within 800 lines, procedures within 150,
   # input modules used outside the input layer only for their types (tools/check_structure.py)
   dkt_add_pytest(NAME structure_limits FILE tests/test_structure.py LABELS unit TIMEOUT 120)
+  # the module graph of docs/design.md ("Modules") is that of the `use` statements in src/, and
+  # its layers point one way
+  dkt_add_pytest(NAME design_graph FILE tests/test_design_graph.py LABELS unit TIMEOUT 120)
   return()
 endif()
 
