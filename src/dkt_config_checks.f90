@@ -10,7 +10,7 @@ module dkt_config_checks
   use dkt_registry, only: registry_t, find_key, value_text, origin_of, blame
   use dkt_text, only: quoted, fmt_real, fmt_num, itoa
   use dkt_config_types, only: config_t
-  use dkt_config_scene, only: largest_diameter, window_bottom
+  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob
   use dkt_config_lattice, only: lattice_params_t
   implicit none
   private
@@ -119,14 +119,22 @@ contains
            val(ck, 'domain', key)//' and &lbm dx = '//val(ck, 'lbm', 'dx')//' give '
     if (r >= MAX_CELLS) then
       err = both//axis//' = '//key//'/dx = '//fmt_num(r)//' cells; allowed: fewer than '// &
-            fmt_num(MAX_CELLS)//'; make dx larger'
+            fmt_num(MAX_CELLS)//'; '//dx_knob(c, larger=.true.)
     else if (nint(r) < 3) then
       err = both//axis//' = nint('//key//'/dx) = '//itoa(nint(r))//' cells; allowed: '// &
-            axis//' >= 3; make dx smaller, e.g. dx = '//fmt_real(length/3.0_wp)
+            axis//' >= 3; '//dx_knob(c)
+      if (c%lbm%cells_per_diameter <= 0.0_wp) err = err//', e.g. dx = '//fmt_real(length/3.0_wp)
     else if (abs(r - anint(r)) > WHOLE_TOL) then
-      ! the suggested dx is to be copied: all its digits, so that it gives whole cells
-      err = both//key//'/dx = '//fmt_num(r)//' cells, not a whole number; choose dx = '// &
-            key//'/n, e.g. dx = '//fmt_real(length/anint(r))//' ('//itoa(nint(r))//' cells)'
+      ! the suggestion is to be copied: all its digits, so that it gives whole cells. Where
+      ! lbm.cells_per_diameter sets dx (from the width), lbm.dx is not read: the length moves.
+      if (c%lbm%cells_per_diameter > 0.0_wp) then
+        err = both//key//'/dx = '//fmt_num(r)//' cells, not a whole number; with dx set by '// &
+              'lbm.cells_per_diameter, choose '//key//' = n*dx, e.g. '//key//' = '// &
+              fmt_real(anint(r)*c%lbm%dx)//' ('//itoa(nint(r))//' cells)'
+      else
+        err = both//key//'/dx = '//fmt_num(r)//' cells, not a whole number; choose dx = '// &
+              key//'/n, e.g. dx = '//fmt_real(length/anint(r))//' ('//itoa(nint(r))//' cells)'
+      end if
     end if
   end subroutine chk_cells
 
@@ -194,7 +202,7 @@ contains
         err = both//'; allowed: diameter('//itoa(k)//')/dx >= '// &
               itoa(nint(MIN_CELLS_PER_D))//', i.e. dx <= diameter('//itoa(k)//')/'// &
               itoa(nint(MIN_CELLS_PER_D))//' = '// &
-              fmt_num(p%diameter(k)/MIN_CELLS_PER_D)//' cm; make dx smaller'
+              fmt_num(p%diameter(k)/MIN_CELLS_PER_D)//' cm; '//dx_knob(c)
       else if (cells < GOOD_CELLS_PER_D - WHOLE_TOL) then
         ! the first WARN_EACH such particles are named; the others are counted (below)
         ck%few_cells = ck%few_cells + 1

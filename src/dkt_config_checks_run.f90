@@ -231,7 +231,7 @@ contains
       if (c%lbm%tau >= MAP_TAU(i) .and. c%lbm%tau <= MAP_TAU(i + 1)) then
         re_max = min(MAP_RE_CELL(i), MAP_RE_CELL(i + 1))
         where = ''
-        advice = 'make dx smaller (Re_p/N falls with dx), or slow the particle'
+        advice = dx_knob(c)//' (Re_p/N falls with dx), or slow the particle'
         exit
       end if
     end do

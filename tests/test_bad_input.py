@@ -225,6 +225,15 @@ CASES = {
     "dx-does-not-fit-width": Case(
         "dx = 0.05", "dx = 0.03", pieces=["{file}", "&domain", "width", "&lbm", "dx = 0.03"]
     ),
+    # where lbm.cells_per_diameter sets dx (from the width), lbm.dx is not read: a height that
+    # is not whole cells gets a height that is, never a dx to choose
+    "height-does-not-fit-cells-per-diameter": Case(
+        args=["--set", "window.enabled=.false.", "--set", "domain.height=20.01",
+              "--set", "lbm.cells_per_diameter=12.05"],
+        base="case1.nml",
+        pieces=["{file}", "--set domain.height=20.01", "lbm.cells_per_diameter", "2411.21",
+                "choose height = n*dx, e.g. height = 20.008298755186722 (2411 cells)"],
+    ),
     # ---- the DKT keys (input/README.md, &pair, &window, &lbm cells_per_diameter)
     # the diameter ratio is D_1/D_2 with D_1 the larger: below 1 is a range error
     "pair-gamma-below-1": Case(
