@@ -41,6 +41,7 @@ def run_case(exe: Path, case: str, ranks: int, outdir: Path) -> tuple | str:
     for s in spec["sets"] + ["output.series_interval=1e-9", f"output.dir={outdir}"]:
         args += ["--set", s]
     proc = subprocess.run(launch.mpi_prefix(ranks) + args, capture_output=True, text=True,
+                          stdin=subprocess.DEVNULL,
                           timeout=900, env=launch.mpi_env())
     if proc.returncode != 0:
         return f"exit {proc.returncode}: {(proc.stdout + proc.stderr)[-800:]}"
