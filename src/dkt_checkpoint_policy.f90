@@ -16,6 +16,7 @@ module dkt_checkpoint_policy
   use dkt_filesystem, only: remove_file, write_marker
   use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t
+  use dkt_simulation, only: simulation_grow
   use dkt_restart_check, only: restart_problem
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_t, output_fail, output_resume, output_set_stop_reason, &
@@ -186,6 +187,14 @@ contains
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
                          sim%dom%y0, chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
+    if (grown_to(sim, chk%ny)) then
+      ! written after the window grew (docs/model.md §5): the lattice of that size, then its
+      ! populations, which the read puts in place of those the growth moved
+      call simulation_grow(sim, chk%ny)
+      call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
+                           sim%dom%y0, chk, err)
+      if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
+    end if
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
@@ -241,6 +250,17 @@ contains
     call output_resume(out, path, chk%samples, changes)
     state%checkpoints = [path_t(path)]
   end subroutine checkpoint_resume
+
+  !> Whether a window that grows (window.max_above) reaches ny rows from the scene's: by
+  !! lattice_params_t grow_rows at a time, up to ny_max. Any other row count is another lattice.
+  pure logical function grown_to(sim, ny)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: ny
+    grown_to = .false.
+    if (.not. sim%window_on .or. sim%lp%grow_rows < 1) return
+    if (ny <= sim%lp%ny .or. ny > sim%lp%ny_max) return
+    grown_to = ny == sim%lp%ny_max .or. mod(ny - sim%lp%ny, sim%lp%grow_rows) == 0
+  end function grown_to
 
   !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
   !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint

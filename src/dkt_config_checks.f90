@@ -350,7 +350,8 @@ contains
     end associate
   end subroutine chk_pair
 
-  !> Every particle lies inside the window at t = 0, below its upper end by the margin.
+  !> A growing window's limit is not below its length (window.max_above), and every particle
+  !! lies inside the window at t = 0, below its upper end by the margin.
   subroutine chk_window(ck, err)
     type(check_t), intent(inout), target :: ck
     character(len=:), allocatable, intent(inout) :: err
@@ -359,6 +360,13 @@ contains
     type(config_t), pointer :: c
     c => ck%c
     associate (p => c%particles, win => c%window)
+      if (win%max_above > 0.0_wp .and. win%max_above < win%above) then
+        err = from(ck, 'window.max_above window.above')//': &window max_above = '// &
+              val(ck, 'window', 'max_above')//' D_1 is below above = '// &
+              val(ck, 'window', 'above')//' D_1: the window would shrink; allowed: '// &
+              'max_above = 0 (the window never grows) or max_above >= above'
+        return
+      end if
       d1 = largest_diameter(c)
       y_lo = window_bottom(c)
       y_hi = y_lo + c%domain%height

@@ -52,6 +52,9 @@ module dkt_config_lattice
     real(wp) :: d1 = 0.0_wp           !! cm, D_1 of the pair (pair_d1); 0 without particles
     real(wp) :: largest_diameter = 0.0_wp !! cm, of all particles; 0 without particles
     real(wp) :: window_bottom = 0.0_wp !! cm, the window's lower end at t = 0; 0 without window
+    integer :: ny_max = 0             !! rows a growing window may reach (window.max_above); ny
+                                      !! when it never grows
+    integer :: grow_rows = 0          !! rows a growing window adds at a time; 0 when it never grows
     real(wp) :: kiss_enter_cells = 0.0_wp !! spacings, diagnostics.enter_cells as it acts
     real(wp) :: kiss_enter = 0.0_wp   !! spacings, the gap D_r that starts a kissing episode
     real(wp) :: kiss_release = 0.0_wp !! spacings, the gap D_r that ends it
@@ -121,7 +124,16 @@ contains
       lp%largest_diameter = largest_diameter(c)
       call kiss_thresholds(c, lp%kiss_enter, lp%kiss_release)
     end if
-    if (c%window%enabled) lp%window_bottom = window_bottom(c)
+    lp%ny_max = lp%ny
+    if (c%window%enabled) then
+      lp%window_bottom = window_bottom(c)
+      ! docs/model.md §5: rows counted as the window's height is (dkt_config_scene expand)
+      if (c%window%max_above > 0.0_wp) then
+        lp%ny_max = max(lp%ny, 3, nint((c%window%below + c%window%max_above)* &
+                                       largest_diameter(c)/lp%dx))
+        lp%grow_rows = max(1, nint(0.5_wp*c%window%above*largest_diameter(c)/lp%dx))
+      end if
+    end if
     lp%kiss_enter_cells = kiss_enter_cells(c)
     lp%dx_knob = dx_knob(c)
     lp%velocity_source = velocity_scale_source(c)

@@ -13,13 +13,13 @@
 module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
-                     MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE
+                     MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_Alltoallv
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
   implicit none
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
-            domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS
+            domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS, domain_resize, domain_move_rows
 
   !> fewest rows a slab may hold: the open-end rule (E5) reads the row next to the end row
   integer, parameter :: MIN_SLAB_ROWS = 2
@@ -112,6 +112,75 @@ contains
     dom%has_upper_end = dom%rank == dom%nranks - 1 .and. .not. periodic_y
     allocate (dom%sbuf_up(3*nx), dom%sbuf_dn(3*nx), dom%rbuf_up(3*nx), dom%rbuf_dn(3*nx))
   end subroutine domain_init
+
+  !> The slabs of the same ranks over ny rows (a window that grows, docs/model.md §5): this
+  !! rank's rows and the padded extent as domain_init sets them for ny; the neighbours, the
+  !! ends and the halo buffers (sized by nx) stay. ny is at least the present row count.
+  pure subroutine domain_resize(dom, ny)
+    type(domain_t), intent(inout) :: dom
+    integer, intent(in) :: ny
+    dom%ny = ny
+    call domain_rows_for(ny, dom%nranks, dom%rank, dom%y0, dom%nyl)
+    dom%nxp = padded_extent(dom%nx, (ny + dom%nranks - 1)/dom%nranks)
+  end subroutine domain_resize
+
+  !> Move the populations of rows 1..nyl (columns 1..nx) of `src`, split as `old` splits its
+  !! rows, into `dst`, split as `new` splits its own (the same ranks and columns, new%ny >=
+  !! old%ny): each global row goes to the rank that holds it in `new`, in one MPI_Alltoallv.
+  !! Both sides count every message from the two row counts alone (domain_rows_for), so the
+  !! sizes agree on uneven splits. Rows beyond old%ny are not touched: the caller fills them.
+  !! Stored values travel as they are (a 4-byte value in the 8-byte buffer converts exactly).
+  subroutine domain_move_rows(old, new, src, dst)
+    type(domain_t), intent(in) :: old, new
+    type(lattice_t), intent(in) :: src
+    type(lattice_t), intent(inout) :: dst
+    integer :: scount(0:old%nranks - 1), sdispl(0:old%nranks - 1)
+    integer :: rcount(0:old%nranks - 1), rdispl(0:old%nranks - 1)
+    real(wp), allocatable :: sbuf(:), rbuf(:)
+    integer :: r, y0, nyl, lo, hi, j, k, m, nx
+    nx = old%nx
+    do r = 0, old%nranks - 1
+      ! to r: my old rows that r holds in the new split; from r: r's old rows that I hold
+      call domain_rows_for(new%ny, new%nranks, r, y0, nyl)
+      scount(r) = 9*nx*max(0, min(old%y0 + old%nyl, y0 + nyl) - max(old%y0, y0))
+      call domain_rows_for(old%ny, old%nranks, r, y0, nyl)
+      rcount(r) = 9*nx*max(0, min(new%y0 + new%nyl, y0 + nyl) - max(new%y0, y0))
+    end do
+    sdispl(0) = 0
+    rdispl(0) = 0
+    do r = 1, old%nranks - 1
+      sdispl(r) = sdispl(r - 1) + scount(r - 1)
+      rdispl(r) = rdispl(r - 1) + rcount(r - 1)
+    end do
+    allocate (sbuf(max(1, sum(scount))), rbuf(max(1, sum(rcount))))
+    ! the destinations hold consecutive rows, so my rows in order are the messages in order
+    m = 0
+    do j = 1, old%nyl
+      do k = 0, 8
+        if (src%single) then
+          sbuf(m + 1:m + nx) = real(src%s(1:nx, j, k), wp)
+        else
+          sbuf(m + 1:m + nx) = src%d(1:nx, j, k)
+        end if
+        m = m + nx
+      end do
+    end do
+    call MPI_Alltoallv(sbuf, scount, sdispl, mpi_wp, rbuf, rcount, rdispl, mpi_wp, old%comm)
+    ! likewise the sources: my new rows that existed, in order
+    lo = new%y0 + 1
+    hi = min(new%y0 + new%nyl, old%ny)
+    m = 0
+    do j = lo - new%y0, hi - new%y0
+      do k = 0, 8
+        if (dst%single) then
+          dst%s(1:nx, j, k) = real(rbuf(m + 1:m + nx), sp)
+        else
+          dst%d(1:nx, j, k) = rbuf(m + 1:m + nx)
+        end if
+        m = m + nx
+      end do
+    end do
+  end subroutine domain_move_rows
 
   subroutine domain_free(dom)
     type(domain_t), intent(inout) :: dom

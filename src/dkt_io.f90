@@ -37,7 +37,7 @@ module dkt_io
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
-            io_write_attribute, io_close, io_flush, io_file_exists, io_reopen
+            io_write_attribute, io_close, io_flush, io_file_exists, io_reopen, io_set_rows
 
   !> Set attribute `name` of the group or dataset at `path` (e.g. '/particles' or
   !! '/particles/x') to rank 0's value: a real(wp), an integer or a character string (stored as
@@ -127,6 +127,17 @@ contains
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
   end subroutine io_write_run
+
+  !> The lattice the next snapshots have: ny rows, this rank's y0+1 .. y0+nyl (a window that
+  !! grows, docs/model.md §5, writes snapshots of more rows than the first; each snapshot's
+  !! datasets and XDMF grid have the rows it was written with).
+  subroutine io_set_rows(io, ny, y0, nyl)
+    type(io_t), intent(inout) :: io
+    integer, intent(in) :: ny, y0, nyl
+    io%ny = ny
+    io%y0 = y0
+    io%nyl = nyl
+  end subroutine io_set_rows
 
   !> Write one snapshot as group /fields/NNNNNN (one dataset per name, each with its `units`),
   !! flush the file and rewrite the XDMF sidecar, so a run that stops later still leaves
@@ -222,7 +233,7 @@ contains
     call h5fflush_f(io%file_id, H5F_SCOPE_GLOBAL_F, hdferr)
     call check(hdferr, 'h5fflush_f', io%path)
 
-    call xdmf_add_frame(io%xdmf, step, t, offset, gname, listed(1:nf), bytes(1:nf), np)
+    call xdmf_add_frame(io%xdmf, step, t, offset, gname, listed(1:nf), bytes(1:nf), np, io%ny)
     if (io%rank == 0) call xdmf_write(io%xdmf)
   end subroutine io_write_fields
 

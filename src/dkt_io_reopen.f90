@@ -212,7 +212,9 @@ contains
       do m = 1, size(fnames)
         bytes(m) = value_bytes(io, g//'/'//trim(fnames(m)))
       end do
-      call xdmf_add_frame(io%xdmf, s, t, offset, field_group(s), fnames, bytes, np)
+      ! a window that grows writes later snapshots with more rows (docs/model.md §5)
+      call xdmf_add_frame(io%xdmf, s, t, offset, field_group(s), fnames, bytes, np, &
+                          field_rows(io, g//'/'//trim(fnames(1))))
       deallocate (bytes)
     end do
   end subroutine cut_fields
@@ -239,6 +241,22 @@ contains
     call h5dclose_f(dset, hdferr)
     call check(hdferr, 'h5dclose_f('//path//')', io%path)
   end function value_bytes
+
+  !> Rows (h5py's first extent) of the 2-D field dataset `path`.
+  integer function field_rows(io, path) result(n)
+    type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: path
+    integer(hid_t) :: dset
+    integer(hsize_t) :: dims(2)
+    integer :: hdferr, nd
+    call h5dopen_f(io%file_id, path, dset, hdferr)
+    call check(hdferr, 'h5dopen_f('//path//')', io%path)
+    call extent(io, dset, path, nd, dims)
+    n = io%ny
+    if (nd == 2) n = int(dims(2))
+    call h5dclose_f(dset, hdferr)
+    call check(hdferr, 'h5dclose_f('//path//')', io%path)
+  end function field_rows
 
   !> Length of the 1-D dataset `path`.
   integer function dataset_length(io, path) result(n)

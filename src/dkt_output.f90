@@ -12,7 +12,7 @@ module dkt_output
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute, io_reopen, io_flush
+                    io_write_table, io_write_attribute, io_reopen, io_flush, io_set_rows
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
@@ -586,6 +586,8 @@ contains
       y0 = 0.0_wp
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
       out%fields_step = n
+      ! the rows of this step: a window that grows has more than at the open
+      call io_set_rows(out%io, sim%dom%ny, sim%dom%y0, sim%dom%nyl)
       if (sim%particles_on) then
         allocate (id(nx, nyl), disks(sim%parts%n, 6))
         call particles_solid_field(sim%parts, sim%dom, id)

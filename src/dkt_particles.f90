@@ -35,7 +35,7 @@ module dkt_particles
   private
   public :: particles_t, particle_t, particles_init, particles_find_links, particles_bounce, &
             particles_interior, particles_inner_save, particles_inner_write, &
-            particles_reduce_forces, particles_move, particles_solid_field, &
+            particles_reduce_forces, particles_move, particles_solid_field, particles_resize_rows, &
             particles_stable_substeps, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
             BB_HALFWAY, BB_YU, BB_BFL
 
@@ -282,6 +282,16 @@ contains
     type(particles_t), intent(inout) :: ps
     call cells_build(ps%cells, ps%p%x, ps%p%y, 2.0_wp*ps%rmax)
   end subroutine place_for_nodes
+
+  !> The slab now holds dom%nyl rows (a window that grew, docs/model.md §5): the per-row sums
+  !! of E7 take the new row count. The caller finds the links again (particles_find_links).
+  subroutine particles_resize_rows(ps, dom)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    deallocate (ps%rows)
+    allocate (ps%rows(3, dom%nyl, ps%n))
+    ps%rows = 0.0_wp
+  end subroutine particles_resize_rows
 
   !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
   !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid

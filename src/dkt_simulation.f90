@@ -11,11 +11,13 @@ module dkt_simulation
   use dkt_mrt, only: collision_init, sweep_init, sweep_rows
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
                        lattice_swap, lattice_allocated, lattice_precision
-  use dkt_domain, only: domain_init, domain_free, halo_start, halo_finish, MIN_SLAB_ROWS
+  use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
+                        domain_resize, domain_move_rows, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_particles, only: particles_init, particles_find_links, particles_bounce, &
                            particles_interior, particles_inner_save, particles_inner_write, &
-                           particles_reduce_forces, particles_move, particles_stable_substeps
+                           particles_reduce_forces, particles_move, particles_stable_substeps, &
+                           particles_resize_rows
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
                          MOTION_FIXED, MOTION_PRESCRIBED, &
                          BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
@@ -29,7 +31,7 @@ module dkt_simulation
   use dkt_run_state, only: simulation_t
   implicit none
   private
-  public :: simulation_t, simulation_setup, simulation_step, simulation_finish
+  public :: simulation_t, simulation_setup, simulation_step, simulation_finish, simulation_grow
 
   !> the most particle sub-steps per fluid step a run takes (docs/running.md): more means a
   !! contact law so stiff (collision.stiffness far below its default) that the run never ends
@@ -53,6 +55,8 @@ contains
     logical :: periodic_x, periodic_y
     integer :: min_rows
     logical :: single, shifted
+    type(domain_t) :: largest
+    type(lattice_params_t) :: lp_largest
 
     sim%cfg = cfg
     sim%lp = lp
@@ -66,7 +70,17 @@ contains
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
-    call check_memory(sim%cfg, sim%lp, sim%dom)
+    if (lp%ny_max > lp%ny) then
+      ! a window that may grow (docs/model.md §5) is refused now, not at a growth mid-run, when
+      ! the node cannot hold its largest lattice
+      largest = sim%dom
+      call domain_resize(largest, lp%ny_max)
+      lp_largest = lp
+      lp_largest%ny = lp%ny_max
+      call check_memory(sim%cfg, lp_largest, largest)
+    else
+      call check_memory(sim%cfg, sim%lp, sim%dom)
+    end if
     with_lattices = .true.
     if (present(lattices)) with_lattices = lattices
     call boundary_init(sim%bc, periodic_x, cfg%domain%lower_kind, cfg%domain%upper_kind, &
@@ -443,24 +457,90 @@ contains
   end subroutine check_particle_places
 
   !> docs/model.md §5: move the window (the new populations in f_next) with the lowest particle; a
-  !! particle near the upper end (the pair has separated by more than the window holds) ends
-  !! the run after this step.
+  !! particle near the upper end grows the window (window.max_above) while it may, else (the
+  !! pair has separated by more than the window holds) ends the run after this step.
   subroutine follow_particles(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     integer :: k
-    character(len=320) :: msg
+    character(len=400) :: msg
     call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
     k = window_escaped(sim%win, sim%parts, sim%lp%ny)
+    do while (k > 0 .and. sim%lp%ny < sim%lp%ny_max)
+      call simulation_grow(sim, min(sim%lp%ny_max, sim%lp%ny + sim%lp%grow_rows))
+      write (msg, '(a,i0,a,f0.2,a,i0,a,i0,a)') 'window grown to ', sim%lp%ny, ' rows (above = ', &
+        window_above(sim), ' D_1) at step ', n, ': particle ', k, &
+        ' came within window.margin of its upper end'
+      call log_line(trim(msg))
+      k = window_escaped(sim%win, sim%parts, sim%lp%ny)
+    end do
     if (k > 0) then
-      write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
-        ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
-        n*sim%lp%dt, ' s): the particles separated by more than the window holds ('// &
-        'window.above = ', sim%cfg%window%above, ' D_1); the run ends here. Raise '// &
-        'window.above to follow them further'
+      if (sim%cfg%window%max_above == 0.0_wp) then
+        write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
+          ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
+          n*sim%lp%dt, ' s): the particles separated by more than the window holds ('// &
+          'window.above = ', sim%cfg%window%above, ' D_1); the run ends here. Raise '// &
+          'window.above to follow them further'
+      else
+        write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
+          ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
+          n*sim%lp%dt, ' s), and the window has grown to its limit (window.max_above = ', &
+          sim%cfg%window%max_above, ' D_1); the run ends here. Raise window.max_above to '// &
+          'follow them further'
+      end if
       sim%stopped_early = trim(msg)
     end if
   end subroutine follow_particles
+
+  !> The window's length (D_1) above the mark window.below D_1 over its lower end, where it
+  !! holds the lowest free centre: window.above, more once it has grown.
+  pure real(wp) function window_above(sim) result(above)
+    type(simulation_t), intent(in) :: sim
+    above = real(sim%lp%ny, wp)*sim%lp%dx/sim%lp%largest_diameter - sim%cfg%window%below
+  end function window_above
+
+  !> The window grows to ny rows at its upper end (docs/model.md §5, window.max_above): the
+  !! rows are split again over the same ranks (domain_resize), the populations of rows 1..old
+  !! ny move to the ranks that now hold them (domain_move_rows), and the new rows at the top
+  !! hold fluid at rest, the equilibrium at rho = 1, u = 0, as the rows entering at the lower
+  !! end do. The lattices, the sweep's row buffers and the particles' per-row sums are sized
+  !! anew; the caller finds the boundary links (particles_find_links). Called between the sweep
+  !! and the swap, where f_next holds the current populations (f as well in place), or at a
+  !! resume before the checkpoint's populations are read. Every rank decides a growth from the
+  !! same particle state and every row keeps its values, so the bits do not depend on the
+  !! decomposition.
+  subroutine simulation_grow(sim, ny)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: ny
+    type(domain_t) :: old
+    type(lattice_t) :: grown
+    real(wp) :: feq(0:8)
+    integer :: i, j
+    logical :: single, shifted
+    old = sim%dom
+    single = sim%f_next%single
+    shifted = sim%f_next%shifted
+    call domain_resize(sim%dom, ny)
+    call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted)
+    call domain_move_rows(old, sim%dom, sim%f_next, grown)
+    feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
+    do j = max(1, old%ny - sim%dom%y0 + 1), sim%dom%nyl
+      do i = 1, sim%dom%nx
+        call lattice_set_node(grown, i, j, feq)
+      end do
+    end do
+    call lattice_free(sim%f)
+    if (sim%in_place) then
+      sim%f = grown
+    else
+      call lattice_free(sim%f_next)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
+    end if
+    sim%f_next = grown
+    call sweep_init(sim%ws, sim%dom%nxp)
+    sim%lp%ny = ny
+    if (sim%particles_on) call particles_resize_rows(sim%parts, sim%dom)
+  end subroutine simulation_grow
 
   !> The gap of particles 1 and 2 after step n, for the kissing episodes (docs/model.md §6); every
   !! step, so that no episode falls between two samples of the series.

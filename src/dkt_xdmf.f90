@@ -24,6 +24,7 @@ module dkt_xdmf
     real(wp) :: t = 0.0_wp      !! s
     real(wp) :: offset = 0.0_wp !! cm, window offset along y
     integer :: nparticles = 0   !! disks stored in <group>/particles (0: none)
+    integer :: ny = 0           !! rows of its fields (a window that grows adds rows)
     character(len=:), allocatable :: group     !! HDF5 group of the snapshot, e.g. /fields/000010
     !> dataset names in that group; fixed length, because gfortran 12 loses the length of a
     !! deferred-length character array when the frames are copied into a grown array
@@ -37,7 +38,7 @@ module dkt_xdmf
     character(len=:), allocatable :: path    !! <dir>/<name>.xdmf
     character(len=:), allocatable :: h5_name !! the HDF5 file, in the same directory
     integer :: nx = 0 !! global columns
-    integer :: ny = 0 !! global rows
+    integer :: ny = 0 !! global rows at the open (each frame has its own)
     real(wp) :: dx = 0.0_wp !! cm, lattice spacing
     integer :: nframes = 0
     type(frame_t), allocatable :: frames(:)
@@ -66,8 +67,9 @@ contains
 
   !> Record the snapshot of `step` stored as datasets `names` in HDF5 group `group`, with
   !! `bytes(k)` bytes per value of dataset k (negative for integers), and `nparticles` disks in
-  !! its sub-group `particles` (position, velocity, radius, omega, id).
-  subroutine xdmf_add_frame(x, step, t, offset, group, names, bytes, nparticles)
+  !! its sub-group `particles` (position, velocity, radius, omega, id); its fields hold `ny` rows
+  !! (x%ny when absent: a window that grows, docs/model.md §5, writes more rows later).
+  subroutine xdmf_add_frame(x, step, t, offset, group, names, bytes, nparticles, ny)
     type(xdmf_t), intent(inout) :: x
     integer, intent(in) :: step              !! time step
     real(wp), intent(in) :: t                !! s, simulated time
@@ -76,6 +78,7 @@ contains
     character(len=*), intent(in) :: names(:) !! its datasets, one per field
     integer, intent(in) :: bytes(:)          !! bytes per value, negative for an integer type
     integer, intent(in) :: nparticles        !! disks in <group>/particles
+    integer, intent(in), optional :: ny      !! rows of the fields
     type(frame_t), allocatable :: grown(:)
     integer :: k
 
@@ -91,6 +94,8 @@ contains
       f%offset = offset
       f%group = group
       f%nparticles = nparticles
+      f%ny = x%ny
+      if (present(ny)) f%ny = ny
       f%bytes = bytes
       if (maxval(len_trim(names)) > len(f%fields)) &
         call fatal_local('xdmf_add_frame: a field name is longer than 64 characters')
@@ -112,13 +117,13 @@ contains
     character(len=1), parameter :: nl = new_line('a')
     integer :: u, ios, n, k
 
-    dims = '1 '//itoa(x%ny)//' '//itoa(x%nx)
     prec = itoa(storage_size(1.0_wp)/8)
     xml = '<?xml version="1.0" ?>'//nl//'<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>'//nl// &
           '<Xdmf Version="3.0">'//nl//'  <Domain>'//nl// &
           '    <Grid Name="run" GridType="Collection" CollectionType="Temporal">'//nl
     do n = 1, x%nframes
       associate (f => x%frames(n))
+        dims = '1 '//itoa(f%ny)//' '//itoa(x%nx)
         h5 = xml_escape(x%h5_name//':'//f%group)
         xml = xml//'      <Grid Name="step '//itoa(f%step)//'" GridType="Collection" '// &
               'CollectionType="Spatial">'//nl// &

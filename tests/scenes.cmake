@@ -13,3 +13,7 @@ dkt_add_pytest(NAME window_three_lengths FILE tests/test_window.py LABELS regres
 # Checkpoint and restart (issue: a cluster run survives its wall-clock limit and resumes bit for bit)
 dkt_add_pytest(NAME restart FILE tests/test_restart.py LABELS regression mpi PROCESSORS 3
   TIMEOUT 900)
+# A window that grows instead of losing a particle (window.max_above): bitwise on 1-4 ranks and
+# two lattices, restarts before and after the growth, the run file's rows, the growth limit
+dkt_add_pytest(NAME window_grow FILE tests/test_window_grow.py LABELS regression mpi PROCESSORS 4
+  TIMEOUT 900)

@@ -21,8 +21,11 @@ only add). 'once' and 'never' are settled when the episodes that start by t_end/
 pattern as all of them and the pair is neither closing in nor out of line at t_end (centres
 more than D_1/2 apart across the channel); otherwise the point runs again
 with t_end doubled, up to --max-t-end. A run that ended by window_escape is never final by
-itself: the point runs again with window.above doubled, up to --max-above. `collect` reports
-both in regime.csv. With --kiss (a once-to-never threshold) 'once' and 'repeated' are one class,
+itself: the point runs again with window.above doubled, up to --max-above. With a window that
+grows (--grow, or window.max_above set in the scene or a --set) each run's window grows by
+itself up to its limit (docs/model.md §5), so no point runs again for an escape: one at the
+limit stops the bisection. `collect` reports both in regime.csv. With --kiss (a
+once-to-never threshold) 'once' and 'repeated' are one class,
 'kisses', final as soon as a run has a kissing episode.
 """
 
@@ -623,6 +626,7 @@ class BisectSettings:
     above: float  # D_1, the runs' first window.above
     max_above: float  # D_1
     kiss: bool = False  # tell 'kisses' (once or repeated) from 'never' only (judge)
+    grow: float = 0.0  # D_1, the runs' window.max_above: their windows grow up to it; 0 = never
 
     def identity(self) -> dict[str, object]:
         """What a rerun in the same directory must repeat to reuse its runs: the base scene,
@@ -761,6 +765,14 @@ class Bisector:
                           flush=True)
                     done[value] = (v, r)
                     del target[value]
+                elif v.status == "window_escape" and c.grow > 0:
+                    # the window grew as far as it may: a larger one is a larger limit, which
+                    # the user chooses (a run again would only repeat this one)
+                    raise SweepError(
+                        f"run {r.dir} ({name}, {at}): {v.why}, in a window grown to its limit "
+                        f"window.max_above = {c.grow:g} D_1; its pattern ({v.pattern} so far) "
+                        f"is not final: raise --max-above (or window.max_above), or bracket "
+                        f"away from this value")
                 elif v.status == "window_escape":
                     if 2 * above > c.max_above * (1 + 1e-12):
                         raise SweepError(
@@ -1142,7 +1154,9 @@ def parser() -> argparse.ArgumentParser:
         "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
         "whose pair is closing in, or out of line (centres more than D_1/2 apart across the "
         "channel), at t_end is not settled. A run ended by window_escape is "
-        "never final: the point runs again with window.above doubled, up to --max-above. With "
+        "never final: the point runs again with window.above doubled, up to --max-above; with "
+        "--grow (or window.max_above in the scene) each run's window grows by itself up to its "
+        "limit instead, and an escape at the limit stops the bisection. With "
         "--kiss only a kiss is told from none: a run with a kissing episode is final at once. A "
         "run stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
@@ -1166,6 +1180,10 @@ def parser() -> argparse.ArgumentParser:
     bis.add_argument("--max-above", type=float, metavar="D",
                      help="the largest window.above (in D_1) a point may need to hold both "
                      "particles (default: 4 times the first, the scene's or --set's)")
+    bis.add_argument("--grow", action="store_true",
+                     help="let each run's window grow up to --max-above (window.max_above, "
+                     "docs/model.md section 5) instead of running a point again with "
+                     "window.above doubled after a window escape")
     bis.add_argument("--kiss", action="store_true",
                      help="tell only whether the pair kisses: 'once' and 'repeated' are one "
                      "class, 'kisses', final as soon as a run has a kissing episode (for a once "
@@ -1214,9 +1232,16 @@ def _bisect_command(args: argparse.Namespace) -> int:
     max_above = args.max_above if args.max_above is not None else 4 * above
     if not max_above >= above:
         raise SweepError(f"--max-above {max_above:g} is below window.above = {above:g} D_1")
-    cfg = BisectSettings(base, args.key, lo, hi, args.tol, list(args.sets), args.out.resolve(),
+    sets = list(args.sets)
+    grow, text = _scene_number(base, sets, "window.max_above")
+    if grow is None or not math.isfinite(grow) or grow <= 0:
+        grow = 0.0
+        if args.grow:  # the runs carry the limit, so that a rerun's identity includes it
+            grow = max_above
+            sets.append(f"window.max_above={max_above:g}")
+    cfg = BisectSettings(base, args.key, lo, hi, args.tol, sets, args.out.resolve(),
                          args.exe or default_exe(), t_end, max_t_end, above, max_above,
-                         args.kiss)
+                         args.kiss, grow)
     if args.slurm:
         launch = slurm_launcher(cfg.out, args.ntasks, args.time, args.partition, args.setup)
     else:

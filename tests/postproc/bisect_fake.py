@@ -12,7 +12,8 @@ log with a `performance:` line, for a pair whose pattern is a known function of 
 - otherwise the upper particle sinks slower than the lower one (separating);
 - V >= ESCAPE: the upper particle leaves the window at 0.75 T A / 30 (A = window.above, in
   D_1, default 15) when that is before T: by window_escape at 0.375 T with A = 15, at
-  0.75 T with A = 30; with A = 60 the run finishes;
+  0.75 T with A = 30; with A = 60 the run finishes. With window.max_above = M > 0 the window
+  grows by itself up to M (docs/model.md §5), so A is M for this rule;
 - V >= GUARD: stopped by a guard at 0.5 T, exit status 3;
 - V >= FAKE_NEVER (from the environment; default: no such band): no episode ('never');
 - FAKE_SIGNAL_AT (s, from the environment): a run that would go on past it stops there by
@@ -147,7 +148,7 @@ def main(argv: list[str]) -> int:
         key,
         float(s[f"pair.{key}"]),
         float(s["run.t_end"]),
-        float(s.get("window.above", 15.0)),
+        max(float(s.get("window.above", 15.0)), float(s.get("window.max_above", 0.0))),
     )
 
 

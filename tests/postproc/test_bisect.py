@@ -57,6 +57,7 @@ def settings(
     max_t_end: float = 32.0,
     sets: list[str] | None = None,
     max_above: float = 60.0,
+    grow: float = 0.0,
 ) -> sweep.BisectSettings:
     return sweep.BisectSettings(
         base.resolve(),
@@ -71,6 +72,7 @@ def settings(
         max_t_end,
         15.0,
         max_above,
+        grow=grow,
     )
 
 
@@ -207,6 +209,50 @@ def test_refusals_name_the_problem(tmp_path: Path, base: Path) -> None:
     for k, (kw, pattern) in enumerate(cases):
         with pytest.raises(sweep.SweepError, match=pattern):
             sweep.bisect(settings(base, tmp_path / f"c{k}", **kw), 1, FakeLaunch())
+
+
+def test_a_growing_window_never_runs_a_point_again_for_an_escape(tmp_path: Path,
+                                                                  base: Path) -> None:
+    """With window.max_above = 60 in the runs (grow), hi = 2 (which leaves a fixed 15-D_1
+    window) finishes in its first run, whose window grows: no run has another window.above,
+    and the bracket is the one found with the window doubled. With a limit of 30 the escape at
+    the limit stops the search at once, naming window.max_above, and hi is run once only (a
+    search that doubled window.above would run g2_a30 next)."""
+    launch = FakeLaunch()
+    cfg = settings(base, tmp_path / "g", sets=["window.max_above=60"], grow=60.0)
+    b, summary = sweep.bisect(cfg, 1, launch)
+    assert {a for call in launch.calls for _, _, a in call} == {15.0}
+    rows = [r for r in csv.DictReader((tmp_path / "g" / "bisect.csv").open())]
+    hi = [r for r in rows if r["row"] == "run" and r["value"] == "2"]
+    assert [(r["status"], r["settled"], Path(r["dir"]).name) for r in hi] == [
+        ("finished", "yes", "g2")
+    ]
+    a, z = bracket(summary)
+    assert a < fake.THRESHOLD <= z and z - a <= 0.01
+    launch = FakeLaunch()
+    cfg = settings(base, tmp_path / "l", sets=["window.max_above=30"], grow=30.0)
+    with pytest.raises(sweep.SweepError, match=r"g2 .*window.max_above = 30 D_1.*--max-above"):
+        sweep.bisect(cfg, 1, launch)
+    assert [v for call in launch.calls for v, _, _ in call].count(2.0) == 1
+
+
+def test_grow_option_puts_the_limit_into_every_run(tmp_path: Path, base: Path) -> None:
+    """`bisect --grow --max-above 60` on the command line: every run carries
+    window.max_above=60 and none another window.above; a scene that sets window.max_above
+    itself grows by its own limit, and --grow adds nothing."""
+    mpiexec = stand_in(
+        tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
+    )
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
+    for k, extra in enumerate((["--grow", "--max-above", "60"],
+                               ["--grow", "--set", "window.max_above=60"])):
+        out = tmp_path / f"b{k}"
+        proc = sweep_cli(*fake_bisect(base, out), *extra, env=env)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        for r in csv.DictReader((out / "runs.csv").open()):
+            args = shlex.split(r["command"])
+            assert args.count("window.max_above=60") == 1, args
+            assert not any(a.startswith("window.above=") for a in args), args
 
 
 def stand_in(path: Path, text: str) -> Path:
