@@ -1187,6 +1187,9 @@ def parser() -> argparse.ArgumentParser:
                      help="stop when the bracket is at most T wide")
     search_options(bis, "runs at the same time, and points per step (default 1)")
     with_out(bis)
+    from .sweepmap import add_parser as add_map  # the map uses this module: imported late
+
+    add_map(sub, with_out)
     return p
 
 
@@ -1288,6 +1291,10 @@ def _dispatch(args: argparse.Namespace) -> int:
     out: Path = args.out
     if args.command == "bisect":
         return _bisect_command(args)
+    if args.command == "map":
+        from .sweepmap import map_command
+
+        return map_command(args)
     if args.command == "plan":
         plan = make_plan(args.base, args.gamma, args.dh, args.sets, out,
                          args.exe or default_exe())
