@@ -7,6 +7,8 @@ of a pair scene, and the regime map of their DKT patterns.
     dkt-sweep collect --out DIR                                   # regime.csv, regime.png
     dkt-sweep bisect BASE.nml --key gamma|dh --lo A --hi B --tol T --out DIR [--jobs N]
                                                                  # where the pattern changes
+    dkt-sweep map BASE.nml --x gamma --x-range A:B --x-tol T --y dh --y-range C:D --y-tol U
+                  --out DIR [--jobs N]       # the borders between patterns (dktlbm.sweepmap)
 
 `plan` writes DIR/runs.csv (id, gamma, dh, dir, command): one run per combination of the
 values, `dktlbm BASE --set pair.gamma=G --set pair.dh=H [--set ...] --set
@@ -24,6 +26,9 @@ with t_end doubled, up to --max-t-end. A run that ended by window_escape is neve
 itself: the point runs again with window.above doubled, up to --max-above. `collect` reports
 both in regime.csv. With --kiss (a once-to-never threshold) 'once' and 'repeated' are one class,
 'kisses', final as soon as a run has a kissing episode.
+
+`map` runs a grid over both keys and bisects, by the same rules, every grid edge whose ends
+differ: DIR/map.csv, DIR/borders.csv and DIR/map.png (`dkt-sweep map --help`).
 """
 
 from __future__ import annotations
