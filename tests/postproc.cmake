@@ -14,6 +14,10 @@ dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS post
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
+# `sweep.py map`: the borders between patterns across gamma and dh, against a stand-in program
+# with two known straight borders (in-process, and once through the command line).
+dkt_add_pytest(NAME postproc_map FILE tests/postproc/test_map.py LABELS postproc
+  PROCESSORS 2 TIMEOUT 300)
 # The install as a new user meets it: `cmake --install` into a scratch prefix, the package
 # pip-installed into a scratch venv, and from an empty directory with only their bin
 # directories on PATH an example scene on 2 ranks, dkt-gap and dkt-pattern.

@@ -7,6 +7,8 @@ of a pair scene, and the regime map of their DKT patterns.
     dkt-sweep collect --out DIR                                   # regime.csv, regime.png
     dkt-sweep bisect BASE.nml --key gamma|dh --lo A --hi B --tol T --out DIR [--jobs N]
                                                                  # where the pattern changes
+    dkt-sweep map BASE.nml --x gamma --x-range A:B --x-tol T --y dh --y-range C:D --y-tol U
+                  --out DIR [--jobs N]       # the borders between patterns (dktlbm.sweepmap)
 
 `plan` writes DIR/runs.csv (id, gamma, dh, dir, command): one run per combination of the
 values, `dktlbm BASE --set pair.gamma=G --set pair.dh=H [--set ...] --set
@@ -27,6 +29,9 @@ itself up to its limit (docs/model.md §5), so no point runs again for an escape
 limit stops the bisection. `collect` reports both in regime.csv. With --kiss (a
 once-to-never threshold) 'once' and 'repeated' are one class,
 'kisses', final as soon as a run has a kissing episode.
+
+`map` runs a grid over both keys and bisects, by the same rules, every grid edge whose ends
+differ: DIR/map.csv, DIR/borders.csv and DIR/map.png (`dkt-sweep map --help`).
 """
 
 from __future__ import annotations
@@ -641,7 +646,11 @@ class BisectSettings:
 
 class Bisector:
     """The bisection over pair.<key>: `launch(todo, every_run)` runs the runs `todo` (all of
-    them before it returns); `every_run` is the whole run set so far, DIR/runs.csv."""
+    them before it returns); `every_run` is the whole run set so far, DIR/runs.csv.
+
+    A point ("value") is what `coords` turns into pair settings; here one number, the value of
+    pair.<key>. A subclass with other points (sweepmap.MapBisector: (x, y) of two keys) gives
+    its own coords, name, label and point_of, and settles its points by the same rules."""
 
     def __init__(self, cfg: BisectSettings, jobs: int, launch) -> None:
         self.cfg, self.jobs, self.launch = cfg, max(1, jobs), launch
@@ -654,23 +663,43 @@ class Bisector:
         if (cfg.out / RUNS_CSV).is_file():
             for r in read_plan(cfg.out):
                 self.runs[r.id] = r
-                value = r.gamma if cfg.key == "gamma" else r.dh
+                value = self.point_of(r)
                 if value is not None:
                     self.earlier.add(value)
 
+    def coords(self, value: float) -> dict[str, float]:
+        """The pair settings of a point: {key: value}, key 'gamma' or 'dh'."""
+        return {self.cfg.key: value}
+
+    def point_of(self, r: PlannedRun):
+        """The point a run of runs.csv is at (None: the run has no value of the key)."""
+        return r.gamma if self.cfg.key == "gamma" else r.dh
+
+    def name(self, value: float) -> str:
+        """The point as the messages name it: 'gamma = 1.5'."""
+        return f"{self.cfg.key} = {value:.8g}"
+
+    def label(self, value: float) -> dict[str, str]:
+        """The columns that name the point in a row of bisect.csv."""
+        return {"row": "run", "value": f"{value:.8g}"}
+
     def planned(self, value: float, t_end: float, above: float) -> PlannedRun:
         c = self.cfg
-        run_id = f"{'g' if c.key == 'gamma' else 'h'}{value:.8g}"  # as plan names them
+        at = self.coords(value)
+        keys = [k for k in ("gamma", "dh") if k in at]  # ids as plan names them: g<G>_h<H>
+        run_id = "_".join(f"{'g' if k == 'gamma' else 'h'}{at[k]:.8g}" for k in keys)
         run_id += f"_t{t_end:g}" if t_end != c.t_end else ""
         run_id += f"_a{above:g}" if above != c.above else ""
-        args = [c.exe, str(c.base), "--set", f"pair.{c.key}={value:.8g}"]
+        args = [c.exe, str(c.base)]
+        for k in keys:
+            args += ["--set", f"pair.{k}={at[k]:.8g}"]
         for s in c.sets:
             args += ["--set", s]
         args += ["--set", f"run.t_end={t_end:g}"]
         args += ["--set", f"window.above={above:g}"] if above != c.above else []
         args += ["--set", f"output.dir={c.out / run_id}"]
-        g = value if c.key == "gamma" else _base_value(c.base, c.sets, "gamma")
-        h = value if c.key == "dh" else _base_value(c.base, c.sets, "dh")
+        g = at["gamma"] if "gamma" in at else _base_value(c.base, c.sets, "gamma")
+        h = at["dh"] if "dh" in at else _base_value(c.base, c.sets, "dh")
         return PlannedRun(run_id, g, h, c.out / run_id, shlex.join(args))
 
     def _record(self, value: float, r: PlannedRun, v: Verdict, above: float,
@@ -683,7 +712,7 @@ class Bisector:
             return
         wall = None if cut else wall_seconds(r)  # a cut's time is its longer run's
         self.rows.append({
-            "row": "run", "value": f"{value:.8g}", "pattern": v.run_pattern or v.status,
+            **self.label(value), "pattern": v.run_pattern or v.status,
             "episodes": str(v.episodes) if v.classified else "",
             "first_kiss_t": "" if v.first_kiss is None else f"{v.first_kiss:.6g}",
             "t_end": f"{v.t_end:.6g}" if math.isfinite(v.t_end) else "",
@@ -753,7 +782,7 @@ class Bisector:
                 t_end, above = target[value]
                 v = have[value][0] if have[value] is not None else judge(verdict(r.h5), c.kiss)
                 self._record(value, r, v, above, cut=r.id != asked[value].id)
-                name = f"{c.key} = {value:.8g}"
+                name = self.name(value)
                 at = f"t_end = {t_end:g} s, window.above = {above:g} D_1"
                 if not v.classified or v.partial and not v.settled:
                     raise SweepError(
@@ -832,11 +861,13 @@ def _first_change(lo: tuple[float, str], hi: tuple[float, str],
     return next((a, b) for a, b in zip(seq, seq[1:], strict=False) if a[1] != b[1])
 
 
-def bisect_state(cfg: BisectSettings) -> None:
-    """Refuse a directory that holds a bisection with other settings; record ours."""
+def bisect_state(cfg: BisectSettings, state: str = BISECT_STATE,
+                 what_it_is: str = "bisection") -> None:
+    """Refuse a directory that holds a bisection (DIR/`state`: a map's is map.json) with other
+    settings (cfg.identity()); record ours."""
     import json
 
-    path = cfg.out / BISECT_STATE
+    path = cfg.out / state
     ours = cfg.identity()
     if path.is_file():
         try:
@@ -848,11 +879,12 @@ def bisect_state(cfg: BisectSettings) -> None:
         if changed:
             what = "; ".join(f"{k}: {theirs.get(k)!r} there, {ours[k]!r} now" for k in changed
                              if k != "base_sha256") or "the base scene's text changed"
-            raise SweepError(f"{cfg.out} holds a bisection with other settings ({what}); "
+            raise SweepError(f"{cfg.out} holds a {what_it_is} with other settings ({what}); "
                              f"its runs do not answer this one: use another --out, or remove "
                              f"{path} to reuse the runs anyway")
     elif (cfg.out / RUNS_CSV).exists():
-        raise SweepError(f"{cfg.out} holds a sweep plan, not a bisection: use another --out")
+        raise SweepError(f"{cfg.out} holds a sweep plan or another search, not a {what_it_is}: "
+                         f"use another --out")
     cfg.out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(ours, indent=1) + "\n")
 
@@ -1172,38 +1204,46 @@ def parser() -> argparse.ArgumentParser:
     bis.add_argument("--hi", type=float, required=True, metavar="B", help="the other end")
     bis.add_argument("--tol", type=float, required=True, metavar="T",
                      help="stop when the bracket is at most T wide")
-    bis.add_argument("--set", dest="sets", action="append", default=[], type=_set_arg,
-                     metavar="group.key=value", help="passed to every run (repeatable)")
-    bis.add_argument("--max-t-end", type=float, metavar="S",
-                     help="the longest run.t_end (s) a point may need to settle (default: 8 "
-                     "times the first)")
-    bis.add_argument("--max-above", type=float, metavar="D",
-                     help="the largest window.above (in D_1) a point may need to hold both "
-                     "particles (default: 4 times the first, the scene's or --set's)")
-    bis.add_argument("--grow", action="store_true",
-                     help="let each run's window grow up to --max-above (window.max_above, "
-                     "docs/model.md section 5) instead of running a point again with "
-                     "window.above doubled after a window escape")
-    bis.add_argument("--kiss", action="store_true",
-                     help="tell only whether the pair kisses: 'once' and 'repeated' are one "
-                     "class, 'kisses', final as soon as a run has a kissing episode (for a once "
-                     "to never threshold; 'never' settles as without it)")
-    bis.add_argument("--exe", default=None, help="the dktlbm executable (as for plan)")
+    search_options(bis, "runs at the same time, and points per step (default 1)")
     with_out(bis)
-    bis.add_argument("--jobs", type=int, default=1, metavar="N",
-                     help="runs at the same time, and points per step (default 1)")
-    bis.add_argument("--ranks", type=int, default=1, metavar="R",
-                     help="MPI ranks per run here (default 1)")
-    bis.add_argument("--slurm", action="store_true",
-                     help="submit each step as a Slurm job array (sbatch --wait) instead")
-    bis.add_argument("--ntasks", type=int, default=4, metavar="R",
-                     help="with --slurm: MPI ranks per run (default 4)")
-    bis.add_argument("--time", default="24:00:00", metavar="HH:MM:SS",
-                     help="with --slurm: time limit per run (default 24:00:00)")
-    bis.add_argument("--partition", help="with --slurm: Slurm partition")
-    bis.add_argument("--setup", action="append", default=[], metavar="LINE",
-                     help="with --slurm: a shell line run before each run (repeatable)")
+    from .sweepmap import add_parser as add_map  # the map uses this module: imported late
+
+    add_map(sub, with_out)
     return p
+
+
+def search_options(q: argparse.ArgumentParser, jobs_help: str) -> None:
+    """The options of a search (bisect, map): the runs' settings, the settling limits, and
+    where the runs go (here, or Slurm job arrays)."""
+    q.add_argument("--set", dest="sets", action="append", default=[], type=_set_arg,
+                   metavar="group.key=value", help="passed to every run (repeatable)")
+    q.add_argument("--max-t-end", type=float, metavar="S",
+                   help="the longest run.t_end (s) a point may need to settle (default: 8 "
+                   "times the first)")
+    q.add_argument("--max-above", type=float, metavar="D",
+                   help="the largest window.above (in D_1) a point may need to hold both "
+                   "particles (default: 4 times the first, the scene's or --set's)")
+    q.add_argument("--grow", action="store_true",
+                   help="let each run's window grow up to --max-above (window.max_above, "
+                   "docs/model.md section 5) instead of running a point again with "
+                   "window.above doubled after a window escape")
+    q.add_argument("--kiss", action="store_true",
+                   help="tell only whether the pair kisses: 'once' and 'repeated' are one "
+                   "class, 'kisses', final as soon as a run has a kissing episode (for a once "
+                   "to never threshold; 'never' settles as without it)")
+    q.add_argument("--exe", default=None, help="the dktlbm executable (as for plan)")
+    q.add_argument("--jobs", type=int, default=1, metavar="N", help=jobs_help)
+    q.add_argument("--ranks", type=int, default=1, metavar="R",
+                   help="MPI ranks per run here (default 1)")
+    q.add_argument("--slurm", action="store_true",
+                   help="submit each step as a Slurm job array (sbatch --wait) instead")
+    q.add_argument("--ntasks", type=int, default=4, metavar="R",
+                   help="with --slurm: MPI ranks per run (default 4)")
+    q.add_argument("--time", default="24:00:00", metavar="HH:MM:SS",
+                   help="with --slurm: time limit per run (default 24:00:00)")
+    q.add_argument("--partition", help="with --slurm: Slurm partition")
+    q.add_argument("--setup", action="append", default=[], metavar="LINE",
+                   help="with --slurm: a shell line run before each run (repeatable)")
 
 
 def _bisect_command(args: argparse.Namespace) -> int:
@@ -1213,9 +1253,25 @@ def _bisect_command(args: argparse.Namespace) -> int:
     if not (0 < lo < hi) or not (math.isfinite(args.tol) and args.tol > 0):
         raise SweepError(f"--lo and --hi must be two different positive values and --tol "
                          f"positive (got {args.lo:g}, {args.hi:g}, {args.tol:g})")
+    base = args.base.resolve()
+    limits = settling_limits(args, base)
+    sets, grow = growth(args, base, limits[3])
+    cfg = BisectSettings(base, args.key, lo, hi, args.tol, sets, args.out.resolve(),
+                         args.exe or default_exe(), *limits, args.kiss, grow)
+    b, summary = bisect(cfg, args.jobs, search_launcher(args, cfg.out))
+    print(f"wrote {cfg.out / BISECT_CSV}, {cfg.out / RUNS_CSV}")
+    print(summary)
+    return 0
+
+
+def settling_limits(args: argparse.Namespace,
+                    base: Path) -> tuple[float, float, float, float]:
+    """(t_end, max_t_end, above, max_above) of a search (search_options) of the scene `base`:
+    the first run.t_end and window.above (the scene's or --set's; the program's window.above
+    when neither gives it) and the largest a point may use. SweepError for a bad one, and for
+    --jobs, --ranks or --ntasks below 1."""
     if args.jobs < 1 or args.ranks < 1 or args.ntasks < 1:
         raise SweepError("--jobs, --ranks and --ntasks must be at least 1")
-    base = args.base.resolve()
     t_end, text = _scene_number(base, args.sets, "run.t_end")
     if not (t_end is not None and math.isfinite(t_end) and t_end > 0):
         raise SweepError(f"{base}: &run t_end is not given (or not a positive number: "
@@ -1232,24 +1288,29 @@ def _bisect_command(args: argparse.Namespace) -> int:
     max_above = args.max_above if args.max_above is not None else 4 * above
     if not max_above >= above:
         raise SweepError(f"--max-above {max_above:g} is below window.above = {above:g} D_1")
+    return t_end, max_t_end, above, max_above
+
+
+def growth(args: argparse.Namespace, base: Path, max_above: float) -> tuple[list[str], float]:
+    """The --set list of a search's runs and the window.max_above they grow to (0: their
+    windows do not grow): the scene's or --set's window.max_above, else with --grow the
+    search's --max-above, added to the --set list so that a rerun's identity includes it."""
     sets = list(args.sets)
-    grow, text = _scene_number(base, sets, "window.max_above")
+    grow, _ = _scene_number(base, sets, "window.max_above")
     if grow is None or not math.isfinite(grow) or grow <= 0:
         grow = 0.0
-        if args.grow:  # the runs carry the limit, so that a rerun's identity includes it
+        if args.grow:
             grow = max_above
             sets.append(f"window.max_above={max_above:g}")
-    cfg = BisectSettings(base, args.key, lo, hi, args.tol, sets, args.out.resolve(),
-                         args.exe or default_exe(), t_end, max_t_end, above, max_above,
-                         args.kiss, grow)
+    return sets, grow
+
+
+def search_launcher(args: argparse.Namespace, out: Path):
+    """How a search (search_options) runs its points: Slurm job arrays with --slurm, else
+    here."""
     if args.slurm:
-        launch = slurm_launcher(cfg.out, args.ntasks, args.time, args.partition, args.setup)
-    else:
-        launch = local_launcher(args.jobs, args.ranks)
-    b, summary = bisect(cfg, args.jobs, launch)
-    print(f"wrote {cfg.out / BISECT_CSV}, {cfg.out / RUNS_CSV}")
-    print(summary)
-    return 0
+        return slurm_launcher(out, args.ntasks, args.time, args.partition, args.setup)
+    return local_launcher(args.jobs, args.ranks)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -1269,6 +1330,10 @@ def _dispatch(args: argparse.Namespace) -> int:
     out: Path = args.out
     if args.command == "bisect":
         return _bisect_command(args)
+    if args.command == "map":
+        from .sweepmap import map_command
+
+        return map_command(args)
     if args.command == "plan":
         plan = make_plan(args.base, args.gamma, args.dh, args.sets, out,
                          args.exe or default_exe())

@@ -75,7 +75,23 @@ def behaviour(value: float, t_end: float, above: float) -> tuple[list[float], st
 
 
 def write(out: Path, name: str, key: str, value: float, t_end: float, above: float) -> int:
-    starts, reason, t_stop, v_upper = behaviour(value, t_end, above)
+    return write_run(out, name, {key: value}, behaviour(value, t_end, above), t_end)
+
+
+# the scales a run file of dktlbm 0.1 on stores in /run (read.open_run needs the executable for
+# a file without them): H = 18 cm, g = 981 cm/s^2, t_ref = sqrt(H/g)
+SCALES = {"t_ref": (18.0 / 981.0) ** 0.5, "h_ref": 18.0, "gravity": 981.0, "width": 2.0,
+          "rho_f": 1.0, "mu": 0.01}
+
+
+def write_run(out: Path, name: str, pair: dict[str, float],
+              behaved: tuple[list[float], str, float, float], t_end: float,
+              scales: bool = False) -> int:
+    """Write the run file and log of a run to `t_end` of the pair settings `pair` that
+    behaves as `behaved` (behaviour's tuple); the program's exit status. With `scales` the
+    file stores SCALES as the program does (else, as the bisection tests' files, it does not,
+    and reading it asks the executable for them)."""
+    starts, reason, t_stop, v_upper = behaved
     out.mkdir(parents=True, exist_ok=True)
     t = np.arange(0.0, t_stop + 1e-9, SAMPLE)
     n = t.size
@@ -96,7 +112,8 @@ def write(out: Path, name: str, key: str, value: float, t_end: float, above: flo
     pattern = "repeated" if len(starts) >= 2 else "once" if starts else "never"
     with h5py.File(out / f"{name}.h5", "w") as h5:
         run = h5.create_group("run")
-        run.attrs["namelist"] = np.bytes_(f"&pair\n  {key} = {value}, d1 = {d1}\n/\n".encode())
+        given = ", ".join(f"{k} = {v}" for k, v in pair.items())
+        run.attrs["namelist"] = np.bytes_(f"&pair\n  {given}, d1 = {d1}\n/\n".encode())
         run.attrs["stop_reason"] = np.bytes_(reason.encode())
         for k, v in (
             ("dt", DT),
@@ -104,6 +121,7 @@ def write(out: Path, name: str, key: str, value: float, t_end: float, above: flo
             ("steps", round(t_end / DT)),
             ("diameter_1", d1),
             ("diameter_2", d2),
+            *(SCALES.items() if scales else ()),
         ):
             run.attrs[k] = float(v)
         p = h5.create_group("particles")

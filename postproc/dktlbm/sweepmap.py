@@ -1,0 +1,524 @@
+"""The borders between DKT patterns across two keys: `dkt-sweep map`.
+
+    dkt-sweep map BASE.nml --x gamma --x-range 1:3 --x-points 5 --x-tol 0.05 \\
+        --y dh --y-range 1.5:6 --y-points 4 --y-tol 0.1 --out DIR [--jobs N] [--cut y=2]
+
+runs a coarse grid of --x-points x --y-points points (pair.gamma and pair.dh, the ends
+included), and wherever two neighbouring grid points (along x or along y) have different
+settled patterns, bisects along that grid edge to the key's tolerance: the bracket [lo, hi]
+of the edge's first change of pattern from its lower end, then the rest of the edge when the
+pattern at hi is not the one at its upper end (so an edge across three patterns gives two
+border points). Every point is settled by the rules of `dkt-sweep bisect` (sweep.Bisector:
+t_end doubled up to --max-t-end while 'once' or 'never' is not settled, window.above doubled
+up to --max-above after a window escape, --kiss), and each step runs the new points of all
+edges together: up to --jobs at a time here (each edge gets --jobs / edges points a step, at
+least one), or one Slurm job array a step.
+
+Every run is DIR/<id> (`g<G>_h<H>`, `_t<T>` for a longer run, `_a<A>` for a taller window)
+and a row of DIR/runs.csv, as plan and bisect write them, so `collect` reads a map as a
+sweep. A point the directory's runs answer is never run again: the same command again (after
+a kill, or with other ranges, grid sizes or tolerances) reuses every finished run, and a run
+the directory holds inside an edge narrows that edge before any new point runs. DIR/map.json
+keeps what defines the runs (base scene path and text, the two keys, the --set list); another
+of these for the same DIR is refused.
+
+Written to DIR: map.csv (a row per run: x, y, role grid or edge, pattern, episodes,
+first_kiss_t, t_end, end_t, status, settled, wall_s, dir, above), borders.csv (a row per
+border point: border id and its two patterns, piece and order along the polyline, the
+edge's key, the midpoint x, y, the bracket x_lo, x_hi, y_lo, y_hi and the patterns at its
+ends), map.png (the plane coloured by the grid's patterns, every settled point, the border
+polylines, and the lines --cut x=V or y=V, e.g. the paper's 1-D cuts).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .sweep import (
+    RUNS_CSV,
+    STYLE,
+    Bisector,
+    PlannedRun,
+    SweepError,
+    Verdict,
+    _first_change,
+    _value,
+    bisect_state,
+    default_exe,
+    growth,
+    search_launcher,
+    search_options,
+    settling_limits,
+    write_plan,
+)
+
+MAP_CSV = "map.csv"
+BORDERS_CSV = "borders.csv"
+MAP_PNG = "map.png"
+MAP_STATE = "map.json"
+MAP_COLUMNS = ("x", "y", "role", "pattern", "episodes", "first_kiss_t", "t_end", "end_t",
+               "status", "settled", "wall_s", "dir", "above")
+BORDER_COLUMNS = ("border", "patterns", "piece", "order", "along", "x", "y", "x_lo", "x_hi",
+                  "y_lo", "y_hi", "pattern_lo", "pattern_hi")
+KEYS = ("gamma", "dh")
+LABELS = {"gamma": r"$\gamma = D_1/D_2$", "dh": "$D_h/D_1$"}
+
+Point = tuple[float, float]
+Settled = dict[float, tuple[Verdict, PlannedRun]]
+
+
+@dataclass
+class Axis:
+    """One key of the map: pair.<key> from lo to hi in `points` grid values, bisected to
+    `tol`."""
+
+    key: str  # 'gamma' or 'dh'
+    lo: float
+    hi: float
+    points: int
+    tol: float
+
+    def grid(self) -> list[float]:
+        """The grid values, ends included, as the runs see them (8 significant digits)."""
+        step = (self.hi - self.lo) / (self.points - 1)
+        return [_value(self.lo + k * step) for k in range(self.points)]
+
+
+@dataclass
+class MapSettings:
+    """What a map runs. The fields a Bisector reads have the names of BisectSettings'."""
+
+    base: Path
+    x: Axis
+    y: Axis
+    sets: list[str]
+    out: Path
+    exe: str
+    t_end: float  # s, the runs' first end time
+    max_t_end: float  # s
+    above: float  # D_1, the runs' first window.above
+    max_above: float  # D_1
+    kiss: bool = False
+    cuts: list[tuple[str, float]] = field(default_factory=list)  # ('x' or 'y', value) to draw
+    grow: float = 0.0  # D_1, the runs' window.max_above: their windows grow up to it; 0 = never
+
+    def identity(self) -> dict[str, object]:
+        """What a rerun in the same directory must repeat to reuse its runs: the base scene,
+        the two keys and the --set options (not the ranges, grid sizes or tolerances)."""
+        return {"base": str(self.base),
+                "base_sha256": hashlib.sha256(self.base.read_bytes()).hexdigest(),
+                "x": self.x.key, "y": self.y.key, "sets": self.sets}
+
+
+class MapBisector(Bisector):
+    """A Bisector whose points are (x, y): pair.<x key> and pair.<y key> together. Its rows
+    (map.csv) name both and whether the point is on the grid."""
+
+    cfg: MapSettings
+
+    def __init__(self, cfg: MapSettings, jobs: int, launch) -> None:
+        self.grid: set[Point] = set()
+        super().__init__(cfg, jobs, launch)
+
+    def coords(self, value: Point) -> dict[str, float]:
+        return {self.cfg.x.key: value[0], self.cfg.y.key: value[1]}
+
+    def point_of(self, r: PlannedRun) -> Point | None:
+        at = {"gamma": r.gamma, "dh": r.dh}
+        x, y = at[self.cfg.x.key], at[self.cfg.y.key]
+        return None if x is None or y is None else (x, y)
+
+    def name(self, value: Point) -> str:
+        return f"{self.cfg.x.key} = {value[0]:.8g}, {self.cfg.y.key} = {value[1]:.8g}"
+
+    def label(self, value: Point) -> dict[str, str]:
+        return {"x": f"{value[0]:.8g}", "y": f"{value[1]:.8g}",
+                "role": "grid" if value in self.grid else "edge"}
+
+
+# ---------------------------------------------------------------- edges and borders
+
+
+@dataclass
+class Edge:
+    """A stretch of a grid line, from the grid point (i, j): along x (y fixed) when `along`
+    is 0, along y (x fixed) when 1. lo and hi are (position along the line, pattern) of the
+    bracket being narrowed; `end` the grid point at the far end, where the line goes on once
+    the bracket is narrowed and the pattern at hi is not the end's."""
+
+    along: int
+    fixed: float
+    index: tuple[int, int]
+    lo: tuple[float, str]
+    hi: tuple[float, str]
+    end: tuple[float, str]
+
+    def point(self, t: float) -> Point:
+        return (t, self.fixed) if self.along == 0 else (self.fixed, t)
+
+    def width(self) -> float:
+        return self.hi[0] - self.lo[0]
+
+    def cells(self) -> set[tuple[int, int]]:
+        """The grid cells (indexed by their lower left grid point) this edge borders."""
+        i, j = self.index
+        return {(i, j - 1), (i, j)} if self.along == 0 else {(i - 1, j), (i, j)}
+
+
+@dataclass
+class Border:
+    """A border point: the narrowed bracket of an edge, and where it lies on its polyline."""
+
+    edge: Edge
+    patterns: str = ""  # the two patterns, sorted, joined by '|'
+    border: int = 0  # one id per pair of patterns
+    piece: int = 0  # the polyline of that border the point is on
+    order: int = 0  # its place along that polyline
+
+    def midpoint(self) -> Point:
+        return self.edge.point(0.5 * (self.edge.lo[0] + self.edge.hi[0]))
+
+
+def grid_edges(xs: list[float], ys: list[float], pattern: dict[Point, str]) -> list[Edge]:
+    """Every edge between neighbouring grid points with different patterns."""
+    edges = []
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            if i + 1 < len(xs) and pattern[(x, y)] != pattern[(xs[i + 1], y)]:
+                far = (xs[i + 1], pattern[(xs[i + 1], y)])
+                edges.append(Edge(0, y, (i, j), (x, pattern[(x, y)]), far, far))
+            if j + 1 < len(ys) and pattern[(x, y)] != pattern[(x, ys[j + 1])]:
+                far = (ys[j + 1], pattern[(x, ys[j + 1])])
+                edges.append(Edge(1, x, (i, j), (y, pattern[(x, y)]), far, far))
+    return edges
+
+
+class MapSearch:
+    """The grid, then every differing edge narrowed step by step, all edges' points of a step
+    settled together (MapBisector.settle)."""
+
+    def __init__(self, m: MapBisector) -> None:
+        self.m, self.cfg = m, m.cfg
+        self.borders: list[Border] = []
+        self.steps = 0
+
+    def tol(self, e: Edge) -> float:
+        return (self.cfg.x if e.along == 0 else self.cfg.y).tol
+
+    def run(self) -> list[Border]:
+        xs, ys = self.cfg.x.grid(), self.cfg.y.grid()
+        points = [(x, y) for y in ys for x in xs]
+        self.m.grid = set(points)
+        print(f"grid: {len(xs)} x {len(ys)} points", flush=True)
+        got = self.m.settle(points)
+        edges = grid_edges(xs, ys, {p: got[p][0].pattern for p in points})
+        while edges:
+            edges = self.step(edges)
+        return self.borders
+
+    def step(self, edges: list[Edge]) -> list[Edge]:
+        """Narrow every edge once: with the directory's earlier runs inside it when there are
+        any (running nothing), else with new points; the edges still to narrow."""
+        inside = {id(e): sorted(t for t in self._earlier(e) if e.lo[0] < t < e.hi[0])
+                  for e in edges}
+        if any(inside.values()):
+            wanted = [e.point(t) for e in edges for t in inside[id(e)]]
+            self.m.earlier -= set(wanted)  # each earlier point is read once
+            got = self.m.settle(wanted, known_only=True)
+        else:
+            inside = {id(e): self._new_points(e, len(edges)) for e in edges}
+            self.steps += 1
+            total = sum(map(len, inside.values()))
+            print(f"step {self.steps}: {len(edges)} edge{'s' if len(edges) != 1 else ''}, "
+                  f"{total} point{'s' if total != 1 else ''}", flush=True)
+            got = self.m.settle([e.point(t) for e in edges for t in inside[id(e)]])
+        going = []
+        for e in edges:
+            mine = {t: got[e.point(t)] for t in inside[id(e)] if e.point(t) in got}
+            e.lo, e.hi = _first_change(e.lo, e.hi, mine)
+            going += self._narrowed(e)
+        return going
+
+    def _earlier(self, e: Edge) -> list[float]:
+        """Positions along e's line of the points run before in this directory."""
+        a = 1 - e.along
+        return [p[e.along] for p in self.m.earlier if p[a] == e.fixed]
+
+    def _new_points(self, e: Edge, edges: int) -> list[float]:
+        """Up to --jobs / edges (at least one) points evenly inside e's bracket, no more than
+        it needs to reach the tolerance."""
+        width, tol = e.width(), self.tol(e)
+        n = min(max(1, self.m.jobs // edges), max(1, math.ceil(width / tol - 1e-9) - 1))
+        ts = sorted({_value(e.lo[0] + k * width / (n + 1)) for k in range(1, n + 1)}
+                    - {e.lo[0], e.hi[0]})
+        if not ts:
+            key = (self.cfg.x if e.along == 0 else self.cfg.y).key
+            raise SweepError(f"the tolerance {tol:g} of {key} is finer than 8 significant "
+                             f"digits resolve")
+        return ts
+
+    def _narrowed(self, e: Edge) -> list[Edge]:
+        """e if it is still wider than its tolerance; else its border point is kept, and the
+        rest of its line to the grid point `end` goes on when the pattern changes there too."""
+        if e.width() <= self.tol(e) * (1 + 1e-9):
+            self.borders.append(Border(Edge(e.along, e.fixed, e.index, e.lo, e.hi, e.end)))
+            if e.hi[1] != e.end[1]:
+                return [Edge(e.along, e.fixed, e.index, e.hi, e.end, e.end)]
+            return []
+        return [e]
+
+
+def link_borders(borders: list[Border], span: Point) -> None:
+    """Number the borders (one id per pair of patterns, in sorted order) and order the points
+    of each into polylines: two points are neighbours when their edges border the same grid
+    cell; each piece starts at a point with at most one neighbour left when there is one, and
+    goes on to the nearest neighbour not yet taken (distances in units of each axis's
+    `span`)."""
+    for b in borders:
+        b.patterns = "|".join(sorted((b.edge.lo[1], b.edge.hi[1])))
+    ids = {name: k + 1 for k, name in enumerate(sorted({b.patterns for b in borders}))}
+
+    def far(a: Border, b: Border) -> float:
+        (ax, ay), (bx, by) = a.midpoint(), b.midpoint()
+        return math.hypot((ax - bx) / span[0], (ay - by) / span[1])
+
+    for name, number in ids.items():
+        mine = sorted((b for b in borders if b.patterns == name), key=lambda b: b.midpoint())
+        near = {id(b): [c for c in mine if c is not b and b.edge.cells() & c.edge.cells()]
+                for b in mine}
+        left, piece = list(mine), 0
+        while left:
+            piece += 1
+            free = [b for b in left if sum(c in left for c in near[id(b)]) <= 1]
+            b, order = (free or left)[0], 0
+            while b is not None:
+                left.remove(b)
+                order += 1
+                b.border, b.piece, b.order = number, piece, order
+                nxt = [c for c in near[id(b)] if c in left]
+                b = min(nxt, key=lambda c, b=b: far(b, c)) if nxt else None
+
+
+# ---------------------------------------------------------------- output
+
+
+def write_map_csv(m: MapBisector) -> Path:
+    path = m.cfg.out / MAP_CSV
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=MAP_COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(m.rows)
+    return path
+
+
+def border_row(b: Border) -> dict[str, str]:
+    e = b.edge
+    x, y = b.midpoint()
+    lo, hi = e.point(e.lo[0]), e.point(e.hi[0])
+    return {"border": str(b.border), "patterns": b.patterns, "piece": str(b.piece),
+            "order": str(b.order), "along": "x" if e.along == 0 else "y",
+            "x": f"{x:.8g}", "y": f"{y:.8g}", "x_lo": f"{lo[0]:.8g}", "x_hi": f"{hi[0]:.8g}",
+            "y_lo": f"{lo[1]:.8g}", "y_hi": f"{hi[1]:.8g}", "pattern_lo": e.lo[1],
+            "pattern_hi": e.hi[1]}
+
+
+def write_borders(borders: list[Border], out: Path) -> Path:
+    path = out / BORDERS_CSV
+    rows = sorted(borders, key=lambda b: (b.border, b.piece, b.order))
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=BORDER_COLUMNS)
+        w.writeheader()
+        w.writerows(border_row(b) for b in rows)
+    return path
+
+
+def draw_map(cfg: MapSettings, grid: dict[Point, str], points: dict[Point, str],
+             borders: list[Border], pdf: bool = False) -> list[Path]:
+    """map.png: the plane coloured by the grid's patterns (each grid point's cell), every
+    settled point (large: grid, small: edge points), each border's polylines through the
+    midpoints of its brackets, and the --cut lines."""
+    import numpy as np
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+
+    style = {**STYLE, "kisses": ("o", "tab:red")}
+    xs, ys = cfg.x.grid(), cfg.y.grid()
+    names = sorted({p for p in grid.values()})
+    code = np.array([[names.index(grid[(x, y)]) for x in xs] for y in ys], dtype=float)
+
+    def cell_edges(v: list[float]) -> list[float]:
+        mids = [0.5 * (a + b) for a, b in zip(v, v[1:], strict=False)]
+        return [v[0]] + mids + [v[-1]]
+
+    fig = Figure(figsize=(7.0, 5.0), layout="constrained")
+    ax = fig.subplots()
+    ax.pcolormesh(cell_edges(xs), cell_edges(ys), code, alpha=0.25, vmin=-0.5,
+                  vmax=len(names) - 0.5, cmap=ListedColormap([style[n][1] for n in names]))
+    for name in sorted(set(points.values())):
+        marker, colour = style.get(name, ("x", "black"))
+        label: str | None = name
+        for on_grid, size in ((True, 60), (False, 14)):
+            pts = [p for p, n in points.items() if n == name and (p in grid) == on_grid]
+            if pts:
+                ax.scatter(*zip(*pts, strict=True), marker=marker, s=size, color=colour,
+                           zorder=3, label=label)
+                label = None
+    _draw_borders(ax, borders)
+    for axis, value in cfg.cuts:
+        line = ax.axvline if axis == "x" else ax.axhline
+        line(value, color="0.3", linestyle="--", linewidth=1.0, zorder=1)
+        ax.annotate(f"cut {(cfg.x if axis == 'x' else cfg.y).key} = {value:g}",
+                    (value, ys[0]) if axis == "x" else (xs[-1], value), fontsize="small",
+                    ha="right", va="bottom", color="0.3", rotation=90 if axis == "x" else 0)
+    ax.margins(0.03)
+    ax.set_xlabel(LABELS[cfg.x.key])
+    ax.set_ylabel(LABELS[cfg.y.key])
+    ax.set_title(f"DKT patterns: {len(xs)} x {len(ys)} grid, {len(borders)} border points",
+                 fontsize="medium")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    png = cfg.out / MAP_PNG
+    fig.savefig(png, dpi=150)
+    written = [png]
+    if pdf:
+        written.append(png.with_suffix(".pdf"))
+        fig.savefig(written[-1])
+    return written
+
+
+def _draw_borders(ax, borders: list[Border]) -> None:
+    """Each border's pieces as lines through the midpoints (in order), each bracket as a
+    short thick segment."""
+    styles = ("-", "--", "-.", ":")
+    for b in borders:
+        e = b.edge
+        (x0, y0), (x1, y1) = e.point(e.lo[0]), e.point(e.hi[0])
+        ax.plot([x0, x1], [y0, y1], color="black", linewidth=3, zorder=4)
+    for number in sorted({b.border for b in borders}):
+        mine = [b for b in borders if b.border == number]
+        for piece in sorted({b.piece for b in mine}):
+            line = sorted((b for b in mine if b.piece == piece), key=lambda b: b.order)
+            ax.plot(*zip(*(b.midpoint() for b in line), strict=True), color="black",
+                    linestyle=styles[(number - 1) % len(styles)], linewidth=1.2, zorder=4,
+                    label=f"border {line[0].patterns}" if piece == 1 else None)
+
+
+# ---------------------------------------------------------------- the map
+
+
+def trace_map(cfg: MapSettings, jobs: int, launch,
+              pdf: bool = False) -> tuple[MapBisector, list[Border], str]:
+    """Run the map (MapSearch); write runs.csv and map.csv (also when it stops on an error),
+    then borders.csv and map.png; return the summary line."""
+    bisect_state(cfg, MAP_STATE, "map")
+    m = MapBisector(cfg, jobs, launch)
+    try:
+        borders = MapSearch(m).run()
+    finally:
+        if m.runs:
+            write_plan(list(m.runs.values()), cfg.out)
+        write_map_csv(m)
+    link_borders(borders, (cfg.x.hi - cfg.x.lo, cfg.y.hi - cfg.y.lo))
+    write_borders(borders, cfg.out)
+    draw_map(cfg, *map_points(m), borders, pdf)
+    counts: dict[str, int] = {}
+    for b in borders:
+        counts[b.patterns] = counts.get(b.patterns, 0) + 1
+    each = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items())) or "no change of pattern"
+    n, files = len(m.rows), len({row["dir"] for row in m.rows})
+    return m, borders, (f"map of {cfg.x.key} x {cfg.y.key}: {len(m.grid)} grid points, "
+                        f"{len(borders)} border points ({each}), {n} verdicts from {files} "
+                        f"run{'s' if files != 1 else ''}")
+
+
+def map_points(m: MapBisector) -> tuple[dict[Point, str], dict[Point, str]]:
+    """The grid's patterns and every settled point's, from map.csv's rows (the last settled
+    row of a point is its pattern; with --kiss its class)."""
+    points: dict[Point, str] = {}
+    for row in m.rows:
+        if row["settled"] == "yes":
+            p = (float(row["x"]), float(row["y"]))
+            points[p] = _class(row["pattern"], m.cfg.kiss)
+    grid = {p: points.get(p, "missing") for p in m.grid}
+    return grid, points
+
+
+def _class(pattern: str, kiss: bool) -> str:
+    return "kisses" if kiss and pattern in ("once", "repeated") else pattern
+
+
+# ---------------------------------------------------------------- command line
+
+
+def _range_arg(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not A:B") from None
+    if not (0 < lo < hi and math.isfinite(hi)):
+        raise argparse.ArgumentTypeError(f"{text!r}: need 0 < A < B")
+    return _value(lo), _value(hi)
+
+
+def _cut_arg(text: str) -> tuple[str, float]:
+    axis, eq, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if axis not in ("x", "y") or not eq or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"{text!r} is not x=VALUE or y=VALUE")
+    return axis, number
+
+
+def add_parser(sub, with_out) -> None:
+    """`dkt-sweep map` in the subcommands `sub` of dkt-sweep (with_out adds --out)."""
+    q = sub.add_parser(
+        "map", help="trace the borders between DKT patterns across gamma and dh",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    q.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
+    for a in ("x", "y"):
+        q.add_argument(f"--{a}", choices=KEYS, required=True,
+                       help=f"the key {'across' if a == 'x' else 'up'}: pair.gamma or pair.dh")
+        q.add_argument(f"--{a}-range", type=_range_arg, required=True, metavar="A:B",
+                       help="its range, ends included")
+        q.add_argument(f"--{a}-points", type=int, default=5, metavar="N",
+                       help="grid values along it, ends included (default 5)")
+        q.add_argument(f"--{a}-tol", type=float, required=True, metavar="T",
+                       help="bisect each edge along it to a bracket at most T wide")
+    q.add_argument("--cut", action="append", default=[], type=_cut_arg, metavar="x=V|y=V",
+                   help="draw the line x = V or y = V on map.png (repeatable), e.g. a 1-D "
+                   "search's line")
+    q.add_argument("--pdf", action="store_true", help="also write DIR/map.pdf")
+    search_options(q, "runs at the same time (default 1); each step gives every edge "
+                   "N / edges points, at least one")
+    with_out(q)
+
+
+def map_command(args: argparse.Namespace) -> int:
+    if not args.base.is_file():
+        raise SweepError(f"{args.base}: no such scene file")
+    if args.x == args.y:
+        raise SweepError(f"--x and --y are both {args.x}: a map needs two keys")
+    axes = []
+    for a in ("x", "y"):
+        (lo, hi), n, tol = getattr(args, f"{a}_range"), getattr(args, f"{a}_points"), \
+            getattr(args, f"{a}_tol")
+        if n < 2 or not (math.isfinite(tol) and tol > 0):
+            raise SweepError(f"--{a}-points must be at least 2 and --{a}-tol positive "
+                             f"(got {n}, {tol:g})")
+        axes.append(Axis(getattr(args, a), lo, hi, n, tol))
+    base = args.base.resolve()
+    limits = settling_limits(args, base)
+    sets, grow = growth(args, base, limits[3])
+    cfg = MapSettings(base, axes[0], axes[1], sets, args.out.resolve(),
+                      args.exe or default_exe(), *limits, args.kiss, list(args.cut), grow)
+    _, _, summary = trace_map(cfg, args.jobs, search_launcher(args, cfg.out), args.pdf)
+    print(f"wrote {', '.join(str(cfg.out / f) for f in (MAP_CSV, BORDERS_CSV, MAP_PNG))}, "
+          f"{cfg.out / RUNS_CSV}")
+    print(summary)
+    return 0
