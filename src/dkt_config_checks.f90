@@ -27,6 +27,9 @@ module dkt_config_checks
     character(len=:), allocatable :: warnings !! newline-separated, '' if none
     integer :: few_cells = 0 !! particles with too few cells per diameter (warned)
     integer :: near_wall = 0 !! free particles too near a wall (warned)
+    !> cm: the longest the window may become (its height, or more when window.max_above lets
+    !! it grow), set by chk_particles for the bound on absolute positions
+    real(wp) :: window_length = 0.0_wp
   end type check_t
 
   real(wp), parameter :: WHOLE_TOL = 1.0e-6_wp !! how close width/dx must be to a whole number
@@ -88,6 +91,10 @@ contains
     integer :: j
     ck%few_cells = 0
     ck%near_wall = 0
+    ck%window_length = ck%c%domain%height
+    if (ck%c%window%enabled .and. ck%c%window%max_above > 0.0_wp) &
+      ck%window_length = max(ck%window_length, (ck%c%window%below + ck%c%window%max_above)* &
+                             largest_diameter(ck%c))
     do j = 1, ck%c%particles%count
       call chk_particle(ck, err, j)
       if (len(err) > 0) return
@@ -179,15 +186,16 @@ contains
                           quoted(trim(d%upper))//', &inlet velocity = '// &
                           val(ck, 'inlet', 'velocity'))
         if (len(err) > 0) return
-      else if (abs(p%y(k)) > 2.0_wp**31*c%lbm%dx - d%height) then
+      else if (abs(p%y(k)) > 2.0_wp**31*c%lbm%dx - ck%window_length) then
         ! docs/model.md §5: the window and its particles stay within 2^31 spacings of y = 0,
         ! where a double resolves the position to 2^-21 dx; further out a step's motion is lost
         err = from(ck, 'particles.y pair.y_upper lbm.dx lbm.cells_per_diameter window.below '// &
-                   'window.above')//': &particles y('//itoa(k)//') = '//fmt_num(p%y(k))// &
+                   'window.above window.max_above')//': &particles y('//itoa(k)//') = '// &
+              fmt_num(p%y(k))// &
               ' cm (or &pair y_upper) in a window scene with dx = '//fmt_num(c%lbm%dx)// &
               ' cm: too far from y = 0 for the absolute positions to resolve a step''s '// &
               'motion; allowed: |y('//itoa(k)//')| <= 2^31 dx - window length = '// &
-              fmt_num(round6(2.0_wp**31*c%lbm%dx - d%height, down=.true.))//' cm'
+              fmt_num(round6(2.0_wp**31*c%lbm%dx - ck%window_length, down=.true.))//' cm'
         return
       end if
 

@@ -23,6 +23,7 @@ module dkt_report
     integer :: last = 0         !! the step of the last progress line
     real(wp) :: t_start = 0.0_wp !! wall time at the first step
     real(wp) :: t_last = 0.0_wp  !! wall time of the last progress line
+    integer(i8) :: updates_last = 0 !! simulation_t updates at the last progress line
   end type progress_t
 
 contains
@@ -154,8 +155,7 @@ contains
     integer :: h, m, s
     character(len=256) :: line
     now = MPI_Wtime()
-    mlups = real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - prog%last, wp)/ &
-            max(now - prog%t_last, 1.0e-9_wp)/1.0e6_wp
+    mlups = real(sim%updates - prog%updates_last, wp)/max(now - prog%t_last, 1.0e-9_wp)/1.0e6_wp
     ! the time per step of this process (a resumed run started at step first - 1)
     eta = (now - prog%t_start)/real(n - prog%first + 1, wp)*real(sim%lp%steps - n, wp)
     h = int(eta)/3600
@@ -167,6 +167,7 @@ contains
     call log_line(trim(line))
     prog%last = n
     prog%t_last = now
+    prog%updates_last = sim%updates
   end subroutine report_progress
 
   !> The speed of this process's steps, up to step n, in million lattice updates per second.
@@ -178,8 +179,8 @@ contains
     character(len=256) :: line
     t = MPI_Wtime() - prog%t_start
     write (line, '(a,f9.2,a,i0,a,a,a,f9.3,a)') 'performance: ', &
-      real(sim%lp%nx, wp)*real(sim%lp%ny, wp)*real(n - prog%first + 1, wp)/ &
-      max(t, 1.0e-9_wp)/1.0e6_wp, ' MLUPS (', int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
+      real(sim%updates, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, ' MLUPS (', &
+      int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
   end subroutine report_performance

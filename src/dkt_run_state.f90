@@ -11,6 +11,7 @@ module dkt_run_state
   use dkt_window, only: window_t
   use dkt_diagnostics, only: pair_diag_t
   use dkt_store, only: lattice_t
+  use dkt_kinds, only: i8
   implicit none
   private
   public :: simulation_t
@@ -33,6 +34,9 @@ module dkt_run_state
     type(pair_diag_t) :: pair       !! particles 1 and 2, when the scene has two or more
     logical :: pair_on = .false.
     integer :: step = 0
+    !> lattice-node updates this process has made (nx*ny a step, more once a window grew): the
+    !! speed the progress and performance lines report
+    integer(i8) :: updates = 0
     character(len=:), allocatable :: stopped_early !! why the run ended before its last step
   end type simulation_t
 

@@ -4,7 +4,7 @@
 module dkt_simulation
   use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm
-  use dkt_kinds, only: wp, pi, cs2
+  use dkt_kinds, only: wp, pi, cs2, i8
   use dkt_errors, only: fatal_all, internal_error
   use dkt_config, only: config_t, lattice_params_t
   use dkt_lattice, only: equilibrium
@@ -221,6 +221,7 @@ contains
     end if
     call swap_lattices(sim)
     sim%step = n
+    sim%updates = sim%updates + int(sim%lp%nx, i8)*int(sim%lp%ny, i8)
     if (sim%pair_on) call pair_sample(sim, n)
   end subroutine simulation_step
 

@@ -588,7 +588,8 @@ def test_window_position_bound_is_2_to_the_31_spacings_less_the_window(tmp_path:
     has dx = 2 cm/100 and a window of (10 + 15) D_1 = 5 cm. The bound printed (six digits,
     rounded down) holds and is within 1e-5 of that; a pair with its upper centre on the bound
     is accepted by --check, one just beyond it or far below y = 0 is refused. Catches a bound
-    in cm instead of spacings, one that forgets the window, or a check of y instead of |y|."""
+    in cm instead of spacings, one that forgets the window (or the length a growing window
+    may reach), or a check of y instead of |y|."""
     scene, _ = write_scene(tmp_path, base="case1.nml")
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -607,6 +608,16 @@ def test_window_position_bound_is_2_to_the_31_spacings_less_the_window(tmp_path:
     assert beyond.returncode != 0 and "2^31 dx" in beyond.stderr, beyond.stderr
     below = dkt([*common, "--set", f"pair.y_upper={-2 * exact!r}", "--check"], cwd)
     assert below.returncode != 0 and "2^31 dx" in below.stderr, below.stderr
+    # a window that may grow (window.max_above = 40 D_1) is bounded by its largest length,
+    # (10 + 40) D_1 = 10 cm: an upper centre 2.5 cm inside the fixed window's bound is
+    # accepted without the growth and refused with it
+    inside = f"pair.y_upper={exact - 2.5!r}"
+    assert dkt([*common, "--set", inside, "--check"], cwd).returncode == 0
+    grown = dkt([*common, "--set", "window.max_above=40", "--set", inside, "--check"], cwd)
+    assert grown.returncode != 0 and "window.max_above" in grown.stderr, grown.stderr
+    largest = number_after("2^31 dx - window length =", grown.stderr)
+    exact_grown = 2.0**31 * (2.0 / 100) - 50 * 0.2
+    assert exact_grown * (1 - 1e-5) <= largest <= exact_grown, grown.stderr
 
 
 def test_a_pair_run_too_short_to_classify_is_warned_about_but_allowed(tmp_path: Path) -> None:

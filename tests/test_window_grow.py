@@ -111,6 +111,24 @@ def test_the_window_grows_where_a_fixed_one_ends_the_run_and_the_run_goes_on(run
         assert h5["particles/t"].shape[0] == GROWS_AT + 1
 
 
+def test_the_performance_line_counts_the_rows_of_each_step(runs: Runs) -> None:
+    """The closing speed counts each step's lattice: 97 rows up to the growth, 121 after it (a
+    count of the final rows for every step would be 12 % high). Checked on the printed figures:
+    MLUPS x seconds against the node updates made, so the machine's speed does not enter."""
+    log = (runs.get(1) / "case2.log").read_text()
+    m = re.search(r"performance:\s*([0-9.]+) MLUPS \(\d+ cells x (\d+) steps in\s*([0-9.]+) s", log)
+    assert m, log[-2000:]
+    mlups, steps, seconds = float(m[1]), int(m[2]), float(m[3])
+    assert steps == STEPS
+    nx = 120
+    made = nx * (NY0 * (GROWS_AT - 1) + NY1 * (STEPS - GROWS_AT + 1))
+    # the printed figures are rounded (MLUPS to 0.01, seconds to 0.001): the updates they
+    # imply lie within those roundings, and a step either way of the growth (0.3 %) is allowed
+    lo = (mlups - 0.005) * (seconds - 0.0005) * 1e6
+    hi = (mlups + 0.005) * (seconds + 0.0005) * 1e6
+    assert lo * (1 - 0.003) <= made <= hi * (1 + 0.003), (mlups, seconds, made)
+
+
 @pytest.mark.parametrize("ranks", (2, 3, 4))
 def test_a_growing_window_is_bitwise_the_1_rank_run(runs: Runs, ranks: int) -> None:
     assert_same_bits(datasets(runs.get(1) / "case2.h5"),
