@@ -45,9 +45,12 @@ module dkt_checkpoint
   public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &
             STORAGE_NAMES
 
-  !> lbm.precision by its code in /precision (0, 1, 2)
-  character(len=16), parameter :: STORAGE_NAMES(0:2) = &
-                                  [character(len=16) :: 'double', 'single', 'single_unshifted']
+  !> lbm.precision by its code in /precision (0 to 3). 'single_arith' stores what 'single'
+  !! stores but has its own code: its checkpoints continue bit for bit only with the 4-byte
+  !! collision, so a resume with the other one is refused like any other change of precision.
+  character(len=16), parameter :: STORAGE_NAMES(0:3) = &
+                                  [character(len=16) :: 'double', 'single', 'single_unshifted', &
+                                                         'single_arith']
 
   integer, parameter :: NSTATE = 10 !! values of one particle's state
   integer, parameter :: NINT = 9    !! entries of /state_int
@@ -391,7 +394,7 @@ contains
       chk%precision = code(1)
       if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
           chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
-                                                       ' (0, 1 or 2)'
+                                                       ' (0 to 3)'
     else if (nd /= -1) then
       what = 'a /precision that is not one integer'
     end if

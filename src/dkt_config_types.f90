@@ -389,9 +389,10 @@ contains
                   'velocity scale of the report; 0 = use tau', gt=0.0_wp, le=1.0_wp, &
                   zero_ok=.true.)
     call add_choice(reg, 'lbm', 'precision', self%precision, PRECISION_NAMES, &
-                    'population storage: 8 bytes, or 4 bytes holding f_i - w_i (computed in 8 '// &
-                    'either way); single_unshifted stores f_i in 4 bytes, only to measure '// &
-                    'what the shift buys, not for use')
+                    'population storage and arithmetic: 8 bytes; single: 4 bytes holding '// &
+                    'f_i - w_i, collided in 8; single_arith: stored as single and collided in '// &
+                    '4 bytes as f_i - w_i; single_unshifted stores f_i in 4 bytes, only to '// &
+                    'measure what the shift buys, not for use')
     call add_choice(reg, 'lbm', 'streaming', self%streaming, STREAMING_NAMES, &
                     'one lattice swept in place, or two (read one, write the other); '// &
                     'the same results to the bit, in_place needs half the memory')
