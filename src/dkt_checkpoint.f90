@@ -10,9 +10,11 @@
 !> - /episodes (h5py (3, n_episodes)): start, end and smallest gap of the episodes so far;
 !> - /given: the input as read, as character codes, for the record;
 !> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
-!>   in 4 bytes), 2 'single_unshifted'; absent in checkpoints written before single storage
-!>   existed, which are 'double'. /f holds the stored values exactly (a 4-byte value converts
-!>   to 8 bytes and back without change), so a single-precision run resumes bit for bit too;
+!>   in 4 bytes), 2 'single_unshifted', 3 'single_arith' (stored as 1, collided in 4 bytes: a
+!>   resume across 1 and 3 is refused, it would not continue bit for bit); absent in checkpoints
+!>   written before single storage existed, which are 'double'. /f holds the stored values
+!>   exactly (a 4-byte value converts to 8 bytes and back without change), so a single-precision
+!>   run resumes bit for bit too;
 !> - /f_checksum (h5py (ny, 2)): a digest of each row of /f, and /state_checksum (2): one of
 !>   every other dataset (the values of /state_int, /state_real, /particles, /episodes, /given,
 !>   /precision in this order). A digest is two sums modulo the prime 2^32 - 5 over the 32-bit

@@ -58,8 +58,9 @@ module dkt_config_types
     real(wp) :: mach = 0.0_wp
     !> 'in_place': one lattice, swept row by row; 'two_lattice': read one, write the other
     character(len=12) :: streaming = 'in_place'
-    !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), or
-    !! 'single_unshifted' (f_i in 4 bytes; only to measure what the shift buys)
+    !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), 'single_arith'
+    !! (stored as 'single', collided in 4 bytes) or 'single_unshifted' (f_i in 4 bytes; only to
+    !! measure what the shift buys)
     character(len=16) :: precision = 'double'
     integer :: collision_kind = 0         !! COLLISION_* of collision (config_choices)
     integer :: streaming_kind = 0         !! STREAMING_* of streaming (config_choices)
