@@ -10,9 +10,11 @@
 !> - /episodes (h5py (3, n_episodes)): start, end and smallest gap of the episodes so far;
 !> - /given: the input as read, as character codes, for the record;
 !> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
-!>   in 4 bytes), 2 'single_unshifted'; absent in checkpoints written before single storage
-!>   existed, which are 'double'. /f holds the stored values exactly (a 4-byte value converts
-!>   to 8 bytes and back without change), so a single-precision run resumes bit for bit too;
+!>   in 4 bytes), 2 'single_unshifted', 3 'single_arith' (stored as 1, collided in 4 bytes: a
+!>   resume across 1 and 3 is refused, it would not continue bit for bit); absent in checkpoints
+!>   written before single storage existed, which are 'double'. /f holds the stored values
+!>   exactly (a 4-byte value converts to 8 bytes and back without change), so a single-precision
+!>   run resumes bit for bit too;
 !> - /f_checksum (h5py (ny, 2)): a digest of each row of /f, and /state_checksum (2): one of
 !>   every other dataset (the values of /state_int, /state_real, /particles, /episodes, /given,
 !>   /precision in this order). A digest is two sums modulo the prime 2^32 - 5 over the 32-bit
@@ -45,9 +47,12 @@ module dkt_checkpoint
   public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &
             STORAGE_NAMES
 
-  !> lbm.precision by its code in /precision (0, 1, 2)
-  character(len=16), parameter :: STORAGE_NAMES(0:2) = &
-                                  [character(len=16) :: 'double', 'single', 'single_unshifted']
+  !> lbm.precision by its code in /precision (0 to 3). 'single_arith' stores what 'single'
+  !! stores but has its own code: its checkpoints continue bit for bit only with the 4-byte
+  !! collision, so a resume with the other one is refused like any other change of precision.
+  character(len=16), parameter :: STORAGE_NAMES(0:3) = &
+                                  [character(len=16) :: 'double', 'single', 'single_unshifted', &
+                                                         'single_arith']
 
   integer, parameter :: NSTATE = 10 !! values of one particle's state
   integer, parameter :: NINT = 9    !! entries of /state_int
@@ -391,7 +396,7 @@ contains
       chk%precision = code(1)
       if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
           chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
-                                                       ' (0, 1 or 2)'
+                                                       ' (0 to 3)'
     else if (nd /= -1) then
       what = 'a /precision that is not one integer'
     end if

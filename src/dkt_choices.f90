@@ -24,10 +24,12 @@ module dkt_choices
   integer, parameter, public :: STREAMING_IN_PLACE = 1, STREAMING_TWO_LATTICE = 2
 
   !> lbm.precision: 8 bytes; 4 bytes holding f_i - w_i; 4 bytes holding f_i (the naive form,
-  !! only there to measure what the shift buys) (dkt_store)
-  character(len=*), parameter, public :: PRECISION_NAMES = 'double single single_unshifted'
+  !! only there to measure what the shift buys); 4 bytes holding f_i - w_i and collided in 4
+  !! bytes too (dkt_store, dkt_mrt_sp)
+  character(len=*), parameter, public :: PRECISION_NAMES = &
+                                         'double single single_unshifted single_arith'
   integer, parameter, public :: PRECISION_DOUBLE = 1, PRECISION_SINGLE = 2, &
-                                PRECISION_SINGLE_UNSHIFTED = 3
+                                PRECISION_SINGLE_UNSHIFTED = 3, PRECISION_SINGLE_ARITH = 4
 
   !> inlet.profile: the shape of the inlet velocity across the channel
   character(len=*), parameter, public :: PROFILE_NAMES = 'uniform parabolic'

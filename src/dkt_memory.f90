@@ -28,7 +28,7 @@ contains
   !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
   !! memory check: (1) the lattice (one with lbm.streaming = 'in_place', two otherwise), 9
   !! populations per padded node (nxp columns, nyl rows and two halo rows) of 8 bytes, or 4 with
-  !! lbm.precision = 'single';
+  !! lbm.precision = 'single' or 'single_arith';
   !! (2) the particles: per-row force sums (3 doubles per row and particle) and the boundary
   !! links, at most 8 per surface node and about pi d + 8 surface nodes per particle of d
   !! spacings (28 bytes a link); (3) the output: the field buffer of

@@ -3,15 +3,18 @@
 !> Arrays hold post-collision populations f*(x, t). One sweep pulls f*(x - e_i, t) into each
 !> node (streaming), collides there and stores f*(x, t + 1): into a second lattice
 !> (lbm.streaming = 'two_lattice') or, row by row, into the same one ('in_place', docs/design.md).
-!> The populations are stored in 8 or 4 bytes (lbm.precision, dkt_store) and always collided in
-!> 8. The MRT transform is written out (orthogonal rows, M^-1 = M^T D^-1) rather than a 9x9
-!> product, and the inner loop runs along x so that it vectorises; every node routine is inlined
-!> into its loop, with the collision model and the force switch as literals. A uniform body force
-!> enters through Guo's forcing term in moment space; a scene without one does not compute it.
+!> The populations are stored in 8 or 4 bytes (lbm.precision, dkt_store) and collided in 8,
+!> except with 'single_arith', whose 4-byte deviations are collided in 4 bytes (dkt_mrt_sp) with
+!> 4-byte row buffers. The MRT transform is written out (orthogonal rows, M^-1 = M^T D^-1)
+!> rather than a 9x9 product, and the inner loop runs along x so that it vectorises; every node
+!> routine is inlined into its loop, with the collision model and the force switch as literals.
+!> A uniform body force enters through Guo's forcing term in moment space; a scene without one
+!> does not compute it.
 module dkt_mrt
   use dkt_kinds, only: wp, sp
   use dkt_lattice, only: w, e3_heat_flux_rate
   use dkt_store, only: lattice_t
+  use dkt_mrt_sp, only: collision_sp_t, collision_sp_set, rows_sp, rows_in_place_sp
   implicit none
   private
   public :: collision_t, collision_init, stream_collide, collision_describe, e3_heat_flux_rate, &
@@ -26,6 +29,7 @@ module dkt_mrt
     real(wp) :: s_q = 1.0_wp        !! heat-flux rate (q_x, q_y)
     logical :: forced = .false.     !! whether a body force acts on the fluid
     real(wp) :: force(2) = 0.0_wp   !! body force per unit volume, lattice units
+    type(collision_sp_t) :: c4      !! the same in 4 bytes, for lbm.precision = 'single_arith'
   end type collision_t
 
   !> Row buffers of the in-place sweep, allocated once per run (sweep_init). In-place, row j is
@@ -42,6 +46,8 @@ module dkt_mrt
     real(sp), allocatable :: kept_up_s(:, :)  !! as stored, for the part below it
     real(wp), allocatable :: swap_d(:, :)     !! room for a row while kept_up stands in for it
     real(sp), allocatable :: swap_s(:, :)
+    !> below, saved, o13 and kept_dn in 4 bytes, holding deviations, for 'single_arith'
+    real(sp), allocatable :: below4(:, :), saved4(:, :), o13_4(:, :), kept_dn4(:, :)
   end type sweep_t
 
   integer, parameter :: up3(3) = [2, 5, 6] !! the populations with c_y = +1
@@ -68,6 +74,7 @@ contains
     end if
     coll%force = force
     coll%forced = any(force /= 0.0_wp)
+    call collision_sp_set(coll%c4, bgk, coll%s_nu, coll%s_e, coll%s_eps, coll%s_q, force)
   end subroutine collision_init
 
   !> The nine rates in moment order (rho, e, eps, jx, qx, jy, qy, pxx, pxy).
@@ -118,6 +125,12 @@ contains
     allocate (ws%below(0:nxp - 1, 3), ws%saved(0:nxp - 1, 3), ws%o13(0:nxp - 1, 2))
     allocate (ws%kept_dn(0:nxp - 1, 3), ws%kept_up_d(0:nxp - 1, 0:8), ws%kept_up_s(0:nxp - 1, 0:8))
     allocate (ws%swap_d(0:nxp - 1, 0:8), ws%swap_s(0:nxp - 1, 0:8))
+    allocate (ws%below4(0:nxp - 1, 3), ws%saved4(0:nxp - 1, 3), ws%o13_4(0:nxp - 1, 2), &
+              ws%kept_dn4(0:nxp - 1, 3))
+    ws%below4 = 0.0_sp
+    ws%saved4 = 0.0_sp
+    ws%o13_4 = 0.0_sp
+    ws%kept_dn4 = 0.0_sp
     ws%below = 0.0_wp
     ws%saved = 0.0_wp
     ws%o13 = 0.0_wp
@@ -144,6 +157,7 @@ contains
     logical, intent(in), optional :: keep, below_kept, above_kept
     real(wp) :: sh(0:8)
     real(wp), allocatable :: spare(:, :)
+    real(sp), allocatable :: spare4(:, :)
     integer :: j, nxp, k
     if (j2 < j1) return
     sh = 0.0_wp
@@ -152,7 +166,11 @@ contains
       nxp = size(src%s, 1)
       if (.not. associated(src%s, dst%s)) then
         do j = j1, j2
-          call rows_s(coll, src%s, dst%s, sh, nxp, nx, nyl, j)
+          if (src%arith4) then
+            call rows_sp(coll%c4, src%s, dst%s, nxp, nx, nyl, j)
+          else
+            call rows_s(coll, src%s, dst%s, sh, nxp, nx, nyl, j)
+          end if
         end do
         return
       end if
@@ -172,10 +190,16 @@ contains
       end if
     end if
     if (opt(below_kept)) then
-      ws%below = ws%kept_dn
+      if (dst%arith4) then
+        ws%below4 = ws%kept_dn4
+      else
+        ws%below = ws%kept_dn
+      end if
     else
       do k = 1, 3
-        if (dst%single) then
+        if (dst%arith4) then
+          ws%below4(0:nx + 1, k) = dst%s(0:nx + 1, j1 - 1, up3(k))
+        else if (dst%single) then
           ws%below(0:nx + 1, k) = real(dst%s(0:nx + 1, j1 - 1, up3(k)), wp) + sh(up3(k))
         else
           ws%below(0:nx + 1, k) = dst%d(0:nx + 1, j1 - 1, up3(k))
@@ -193,6 +217,13 @@ contains
       end if
     end if
     do j = j1, j2
+      if (dst%arith4) then
+        call rows_in_place_sp(coll%c4, dst%s, ws%below4, ws%saved4, ws%o13_4, nxp, nx, nyl, j)
+        call move_alloc(ws%below4, spare4)
+        call move_alloc(ws%saved4, ws%below4)
+        call move_alloc(spare4, ws%saved4)
+        cycle
+      end if
       if (dst%single) then
         call rows_in_place_s(coll, dst%s, ws, sh, nxp, nx, nyl, j)
       else
@@ -210,7 +241,13 @@ contains
         dst%d(:, j2 + 1, :) = ws%swap_d
       end if
     end if
-    if (opt(keep)) ws%kept_dn = ws%below
+    if (opt(keep)) then
+      if (dst%arith4) then
+        ws%kept_dn4 = ws%below4
+      else
+        ws%kept_dn = ws%below
+      end if
+    end if
   contains
     pure logical function opt(flag)
       logical, intent(in), optional :: flag

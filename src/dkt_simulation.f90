@@ -54,7 +54,7 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
-    logical :: single, shifted
+    logical :: single, shifted, arith4
     type(domain_t) :: largest
     type(lattice_params_t) :: lp_largest
 
@@ -88,13 +88,13 @@ contains
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision_kind == COLLISION_BGK, lp%force_lb)
     if (with_lattices) then
-      call lattice_precision(cfg%lbm%precision_kind, single, shifted)
+      call lattice_precision(cfg%lbm%precision_kind, single, shifted, arith4)
       sim%in_place = cfg%lbm%streaming_kind == STREAMING_IN_PLACE
-      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
       if (sim%in_place) then
         sim%f_next = sim%f
       else
-        call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted)
+        call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
       end if
       call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)

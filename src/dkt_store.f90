@@ -1,16 +1,19 @@
 !> Storage of a lattice of populations (docs/design.md, "Data layout"): f(0:nxp-1, 0:nyl+1, 0:8)
-!> in 8 bytes (lbm.precision = 'double', the default) or in 4 bytes ('single').
+!> in 8 bytes (lbm.precision = 'double', the default) or in 4 bytes ('single', 'single_arith').
 !>
 !> Single precision stores the deviation from the rest state, f_i - w_i (rho_0 = 1), not f_i:
 !> at low Mach number the deviations that drive the flow are 1e-3..1e-6 of f_i, and a 24-bit
-!> mantissa spent on the constant w_i would leave them a few bits. Every value is computed in
-!> 8 bytes; only the stored population is rounded to 4. Copies between populations of equal
+!> mantissa spent on the constant w_i would leave them a few bits. With 'single' every value is
+!> computed in 8 bytes and only the stored population is rounded to 4; 'single_arith' stores the
+!> same way and its sweep collides in 4 bytes too (dkt_mrt_sp), while everything that reads or
+!> writes populations through the accessors here (boundaries, bounce-back, momentum exchange,
+!> fields) still sees unshifted 8-byte values. Copies between populations of equal
 !> weight (bounce-back pairs, periodic images, halo rows, the window's row shift) move stored
 !> values unchanged in either form.
 module dkt_store
   use dkt_kinds, only: wp, sp
   use dkt_choices, only: PRECISION_NAMES, PRECISION_DOUBLE, PRECISION_SINGLE, &
-                         PRECISION_SINGLE_UNSHIFTED
+                         PRECISION_SINGLE_UNSHIFTED, PRECISION_SINGLE_ARITH
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_lattice, only: w
@@ -23,6 +26,7 @@ module dkt_store
   type :: lattice_t
     logical :: single = .false.  !! populations stored in 4 bytes (s), otherwise in 8 (d)
     logical :: shifted = .false. !! single only: the stored value is f_i - w_i
+    logical :: arith4 = .false.  !! single and shifted only: the sweep collides in 4 bytes
     real(wp), pointer, contiguous :: d(:, :, :) => null() !! (0:nxp-1, 0:nyl+1, 0:8), double
     real(sp), pointer, contiguous :: s(:, :, :) => null() !! the same extents, single
   end type lattice_t
@@ -31,13 +35,15 @@ contains
 
   !> Allocate f(0:nxp-1, 0:nyl+1, 0:8) in the chosen storage, every entry the rest state f_i = w_i
   !! (first touch of ghosts and padding too, so that nothing undefined is ever read).
-  subroutine lattice_allocate(lat, nxp, nyl, single, shifted)
+  subroutine lattice_allocate(lat, nxp, nyl, single, shifted, arith4)
     type(lattice_t), intent(out) :: lat
     integer, intent(in) :: nxp, nyl
     logical, intent(in) :: single, shifted
+    logical, intent(in), optional :: arith4 !! collide in 4 bytes ('single_arith'); default no
     integer :: i
     lat%single = single
     lat%shifted = single .and. shifted
+    if (present(arith4)) lat%arith4 = lat%shifted .and. arith4
     if (single) then
       allocate (lat%s(0:nxp - 1, 0:nyl + 1, 0:8))
       do i = 0, 8
@@ -51,10 +57,12 @@ contains
     end if
   end subroutine lattice_allocate
 
-  !> The storage lbm.precision asks for: single (4 bytes) and shifted (f_i - w_i stored).
-  subroutine lattice_precision(code, single, shifted)
-    integer, intent(in) :: code !! PRECISION_DOUBLE, PRECISION_SINGLE or PRECISION_SINGLE_UNSHIFTED
-    logical, intent(out) :: single, shifted
+  !> The storage lbm.precision asks for: single (4 bytes), shifted (f_i - w_i stored) and
+  !! arith4 (collided in 4 bytes).
+  subroutine lattice_precision(code, single, shifted, arith4)
+    integer, intent(in) :: code !! lbm.precision as its PRECISION_* code
+    logical, intent(out) :: single, shifted, arith4
+    arith4 = .false.
     select case (code)
     case (PRECISION_DOUBLE)
       single = .false.
@@ -65,6 +73,10 @@ contains
     case (PRECISION_SINGLE_UNSHIFTED)
       single = .true.
       shifted = .false.
+    case (PRECISION_SINGLE_ARITH)
+      single = .true.
+      shifted = .true.
+      arith4 = .true.
     case default
       call internal_error('lattice_precision: lbm.precision code '//itoa(code))
     end select
@@ -76,6 +88,8 @@ contains
     character(len=:), allocatable :: name
     if (.not. lat%single) then
       name = 'double'
+    else if (lat%arith4) then
+      name = 'single_arith'
     else if (lat%shifted) then
       name = 'single'
     else
@@ -89,7 +103,7 @@ contains
     select case (code)
     case (PRECISION_DOUBLE)
       b = storage_size(1.0_wp)/8
-    case (PRECISION_SINGLE, PRECISION_SINGLE_UNSHIFTED)
+    case (PRECISION_SINGLE, PRECISION_SINGLE_UNSHIFTED, PRECISION_SINGLE_ARITH)
       b = storage_size(1.0_sp)/8
     case default
       ! pure (the memory formula is): the one stop a pure procedure may make

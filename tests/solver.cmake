@@ -1,6 +1,7 @@
 # Tests of the fluid solver: the collision kernel against its matrix form (unit), analytic flows
 # through the whole program (regression), and rank-count independence (mpi).
 dkt_add_fortran_test(NAME test_mrt SOURCES dkt_check.f90 test_mrt.f90 LABELS unit NO_MPIEXEC)
+dkt_add_fortran_test(NAME test_mrt_sp SOURCES dkt_check.f90 test_mrt_sp.f90 LABELS unit NO_MPIEXEC)
 dkt_add_pytest(NAME analytic_flows FILE tests/test_flows.py LABELS regression PROCESSORS 2
   TIMEOUT 600)
 # lbm.precision: 4-byte storage against the analytic flows, the naive form, the memory count

@@ -26,11 +26,14 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dkt_run import INPUT, last_fields, run, run_args, run_attr
 
 U_R = 2.0**-24  # unit round-off of a 4-byte real (round to nearest)
 SAFETY = 2.0  # the non-equilibrium and force parts of f_i - w_i, besides the equilibrium part
+# the shifted 4-byte forms: stored only ('single'), stored and collided ('single_arith')
+FOUR_BYTES = ("single", "single_arith")
 
 # input/poiseuille.nml: width 1 cm, g = 1e-5 cm/s^2, nu = 0.01 cm^2/s; 200 s is about 20 times
 # its slowest viscous time (T = 243 steps of 0.042 s), so the transient is down to ~1e-9
@@ -82,22 +85,30 @@ def taylor_green(tmp_path: Path, precision: str) -> tuple[float, float]:
     return err, min(run_attr(h5, "steps"), relax)
 
 
-def test_single_poiseuille_is_within_storage_round_off_of_double(tmp_path: Path) -> None:
+@pytest.mark.parametrize("precision", FOUR_BYTES)
+def test_single_poiseuille_is_within_storage_round_off_of_double(
+    tmp_path: Path, precision: str
+) -> None:
     """Body-force Poiseuille flow (exact for the scheme in 8 bytes): the 4-byte shifted
-    storage adds at most 2 u_r T to the relative L2 error (module docstring)."""
+    storage, and the 4-byte arithmetic on it, add at most 2 u_r T to the relative L2 error
+    (module docstring)."""
     double, relax = poiseuille(tmp_path, "double")
-    single, _ = poiseuille(tmp_path, "single")
+    single, _ = poiseuille(tmp_path, precision)
     bound = SAFETY * U_R * relax
     print(f"Poiseuille L2: double {double:.3e}, single {single:.3e}, bound +{bound:.3e}")
     assert double < 1e-7, f"the 8-byte run is not at its steady exact state: {double:.3e}"
     assert single <= double + bound, f"single {single:.3e} > double {double:.3e} + {bound:.3e}"
 
 
-def test_single_taylor_green_is_within_storage_round_off_of_double(tmp_path: Path) -> None:
-    """Low-Mach Taylor-Green decay: the 4-byte shifted storage changes the relative L2 error
-    against the analytic decay by at most 2 u_r min(N, T) (module docstring)."""
+@pytest.mark.parametrize("precision", FOUR_BYTES)
+def test_single_taylor_green_is_within_storage_round_off_of_double(
+    tmp_path: Path, precision: str
+) -> None:
+    """Low-Mach Taylor-Green decay: the 4-byte shifted storage, and the 4-byte arithmetic on
+    it, change the relative L2 error against the analytic decay by at most 2 u_r min(N, T)
+    (module docstring)."""
     double, steps = taylor_green(tmp_path, "double")
-    single, _ = taylor_green(tmp_path, "single")
+    single, _ = taylor_green(tmp_path, precision)
     bound = SAFETY * U_R * steps
     print(f"Taylor-Green L2: double {double:.3e}, single {single:.3e}, bound +-{bound:.3e}")
     # the scheme's own error at 32 cells: second order, a few 1e-3 (tests/test_flows.py)
@@ -138,5 +149,5 @@ def test_check_counts_four_bytes_per_population_in_single(tmp_path: Path) -> Non
     """--check (and the memory check behind it) counts 4 bytes a population in the 4-byte
     forms: exactly half the lattice memory of 8 bytes (to the printed 0.01 MiB)."""
     double = lattice_mib("double", tmp_path)
-    for precision in ("single", "single_unshifted"):
+    for precision in ("single", "single_unshifted", "single_arith"):
         assert abs(lattice_mib(precision, tmp_path) - double / 2) <= 0.01, precision

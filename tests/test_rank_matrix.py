@@ -6,7 +6,8 @@ Each case is a short run of a small scene, chosen so that together the cases cov
 - 1, 2, 3 and 4 ranks (oversubscribed on a 2-core machine);
 - particles whose centres cross a slab face while the window shifts, and in a box;
 - open ends (velocity and outflow, E5), closed ends (walls) and periodic ends;
-- populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single');
+- populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single'), and
+  stored and collided in 4 (lbm.precision = 'single_arith', with 4-byte row buffers);
 - in-place streaming (the default) against two lattices (lbm.streaming = 'two_lattice');
 - interior nodes solid (the default) and fluid (coupling.interior = 'fluid').
 
@@ -155,6 +156,19 @@ for _case in ("window_uneven_rows_3", "closed_box_crossing"):
         "double_twin": _case,
     }
 
+# lbm.precision = 'single_arith' (stored as 'single', collided in 4 bytes with 4-byte row
+# buffers, src/dkt_mrt_sp.f90): the same two cases. The sweep's parts around the halo exchange
+# hand 4-byte rows to each other (kept_dn4, kept_up_s); a part that took the wrong row would
+# differ between rank counts. "double_twin" asserts the 4-byte run really differs from the
+# 8-byte one, "single_twin" that it differs from the 8-byte arithmetic on the same storage.
+for _case in ("window_uneven_rows_3", "closed_box_crossing"):
+    CASES[f"{_case}_single_arith"] = {
+        **CASES[_case],
+        "sets": CASES[_case]["sets"] + ["lbm.precision=single_arith"],
+        "double_twin": _case,
+        "single_twin": f"{_case}_single",
+    }
+
 # coupling.interior = 'fluid': the interior nodes are fluid, bounced from both sides of the
 # surface, and an interior link whose outer node lies in a halo row takes that node's density
 # from its owner. The closed box (a disk across the 3-rank face, uneven rows) and a window case
@@ -252,6 +266,10 @@ def test_case_hits_the_split_it_claims(runs: Runs, case: str) -> None:
         twin, _, _ = runs.get(spec["double_twin"], 1)
         last = sorted(k for k in data if k.startswith("fields/") and k.endswith("/ux"))[-1]
         assert data[last].tobytes() != twin[last].tobytes(), f"{case}: {last} is the 8-byte run's"
+    if "single_twin" in spec:
+        twin, _, _ = runs.get(spec["single_twin"], 1)
+        last = sorted(k for k in data if k.startswith("fields/") and k.endswith("/ux"))[-1]
+        assert data[last].tobytes() != twin[last].tobytes(), f"{case}: {last} is 'single''s"
     # a centre crossed a slab face: its row (1-based, in the window) was on both sides of it
     for n in spec["crosses"]:
         dx = float(runattrs["dx"])

@@ -96,13 +96,22 @@ def test_half_a_run_then_a_restart_equals_the_whole_run(
     assert_same_output(uninterrupted, out)
 
 
-def test_a_single_precision_run_restarts_bit_for_bit(tmp_path: Path) -> None:
-    """lbm.precision = 'single': the checkpoint holds the 4-byte stored values exactly (every
-    value of /f is a float32, /precision says 1 = 'single') and a run resumed from it on 3
-    ranks ends bitwise equal to the run that never stopped. Fails if the checkpoint rounds the
-    stored values, unshifts them, or stores 8-byte values the 4-byte lattice cannot hold."""
+# the 4-byte precisions, the /precision code of each, and the other one that stores alike
+FOUR_BYTES = {"single": (1, "single_arith"), "single_arith": (3, "single")}
+
+
+@pytest.mark.parametrize("precision", sorted(FOUR_BYTES))
+def test_a_single_precision_run_restarts_bit_for_bit(tmp_path: Path, precision: str) -> None:
+    """lbm.precision = 'single' or 'single_arith': the checkpoint holds the 4-byte stored values
+    exactly (every value of /f is a float32, /precision gives the precision's own code: 1 =
+    'single', 3 = 'single_arith') and a run resumed from it on 3 ranks ends bitwise equal to
+    the run that never stopped. Fails if the checkpoint rounds the stored values, unshifts
+    them, or stores 8-byte values the 4-byte lattice cannot hold. The two store alike but
+    collide differently, so a resume with the other one is refused: it would not continue bit
+    for bit."""
+    code, other = FOUR_BYTES[precision]
     steps = STEPS // 2
-    sets = [*SETS, f"run.steps={steps}", "lbm.precision=single"]
+    sets = [*SETS, f"run.steps={steps}", f"lbm.precision={precision}"]
     reference = tmp_path / "reference"
     run("case0.nml", 2, sets, reference, timeout=600)
     out = tmp_path / "run"
@@ -110,11 +119,17 @@ def test_a_single_precision_run_restarts_bit_for_bit(tmp_path: Path) -> None:
     run("case0.nml", 2, [*sets, f"run.steps={half}", f"run.checkpoint_every={half}"], out)
     checkpoint = out / f"case0_chk_{half:09d}.h5"
     with h5py.File(checkpoint, "r") as h5:
-        assert h5["precision"][()].tolist() == [1]
+        assert h5["precision"][()].tolist() == [code]
         f = h5["f"][()]
     assert np.array_equal(f, f.astype(np.float32).astype(f.dtype))
     # stored as f_i - w_i: the rest population (w_0 = 4/9) is near 0, not near 4/9
     assert np.abs(f[0]).max() < 0.1
+    refused = run(
+        "case0.nml", 3, [*sets, f"lbm.precision={other}"], out,
+        extra=["--restart", str(checkpoint)], check=False,
+    )  # fmt: skip
+    assert refused.returncode != 0
+    assert f"--set lbm.precision={precision}" in refused.stderr, refused.stderr
     run("case0.nml", 3, sets, out, extra=["--restart", str(checkpoint)])
     assert_same_output(reference, out)
 

@@ -4,7 +4,8 @@ Standard library and dktlbm.launch (the MPI launch prefix). The scripts import i
 (their own directory is first on sys.path when they run); dktlbm comes from PYTHONPATH=postproc
 (ctest sets it) or from the installed package.
 
-Storage layouts are chosen with the input keys lbm.precision ('double' | 'single') and
+Storage layouts are chosen with the input keys lbm.precision ('double' | 'single' |
+'single_arith', the last stored as 'single' and collided in 4 bytes) and
 lbm.streaming ('two_lattice' | 'in_place'). An executable that refuses a layout (an older build
 without the keys, or a combination it does not implement) is asked with --check before any run,
 and the layout is skipped with its message. A key the executable does not know is left out when
@@ -27,7 +28,7 @@ from dktlbm import launch
 
 ROOT = Path(__file__).resolve().parents[2]
 
-PRECISIONS = ("double", "single")
+PRECISIONS = ("double", "single", "single_arith")
 STREAMINGS = ("two_lattice", "in_place")
 BASELINE = ("double", "two_lattice")
 # the layout of a build without the keys, and the keys' defaults
@@ -38,7 +39,7 @@ DEFAULTS = {"precision": BASELINE[0], "streaming": BASELINE[1]}
 # store first reads the cache line it writes (write-allocate): another 9 populations read.
 # In place, each population is written back where it was read: no extra traffic.
 POPULATIONS = 9
-VALUE_BYTES = {"double": 8, "single": 4}
+VALUE_BYTES = {"double": 8, "single": 4, "single_arith": 4}
 
 
 def node_bytes(precision: str, streaming: str) -> tuple[int, int]:
@@ -93,7 +94,7 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         default=list(PRECISIONS),
         choices=PRECISIONS,
-        help="lbm.precision values (default: double single)",
+        help="lbm.precision values (default: double single single_arith)",
     )
     parser.add_argument(
         "--streaming",

@@ -22,6 +22,7 @@ prints a markdown table (the precisions side by side, each against the first one
 
     tests/perf/precision_accuracy.py                                  # double and single
     tests/perf/precision_accuracy.py --precisions double single single_unshifted --rows single
+    tests/perf/precision_accuracy.py --precisions double single single_arith
 
 The test helpers it imports are found through PYTHONPATH=postproc:tests (ctest sets it).
 """
@@ -137,7 +138,7 @@ def answers_case1(h5file: Path) -> list[tuple[str, object]]:
     with h5py.File(h5file, "r") as h5:
         diag = h5["diagnostics"]
         starts, ends = episodes(diag)
-        pattern = diag.attrs["pattern"].decode()
+        pattern = text_attr(diag.attrs["pattern"])
     rows: list[tuple[str, object]] = [("case1 pattern", pattern)]
     for k, (a, b) in enumerate(zip(starts, ends, strict=True), start=1):
         rows.append((f"case1 kissing {k} begins [s]", float(a)))
@@ -211,7 +212,7 @@ def main() -> int:
         "--precisions",
         nargs="+",
         default=["double", "single"],
-        choices=["double", "single", "single_unshifted"],
+        choices=["double", "single", "single_unshifted", "single_arith"],
     )
     parser.add_argument("--rows", nargs="+", default=list(ROWS), choices=ROWS)
     parser.add_argument("--ranks", type=int, default=2)
