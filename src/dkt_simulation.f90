@@ -517,12 +517,13 @@ contains
     type(lattice_t) :: grown
     real(wp) :: feq(0:8)
     integer :: i, j
-    logical :: single, shifted
+    logical :: single, shifted, arith4
     old = sim%dom
     single = sim%f_next%single
     shifted = sim%f_next%shifted
+    arith4 = sim%f_next%arith4
     call domain_resize(sim%dom, ny)
-    call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted)
+    call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
     call domain_move_rows(old, sim%dom, sim%f_next, grown)
     feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
     do j = max(1, old%ny - sim%dom%y0 + 1), sim%dom%nyl
@@ -535,7 +536,7 @@ contains
       sim%f = grown
     else
       call lattice_free(sim%f_next)
-      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
     end if
     sim%f_next = grown
     call sweep_init(sim%ws, sim%dom%nxp)

@@ -39,11 +39,13 @@ contains
     type(lattice_t), intent(out) :: lat
     integer, intent(in) :: nxp, nyl
     logical, intent(in) :: single, shifted
-    logical, intent(in), optional :: arith4 !! collide in 4 bytes ('single_arith'); default no
+    !> collide in 4 bytes ('single_arith'): not optional, so that no caller that sizes a lattice
+    !! anew (a window that grows) can drop the mode by leaving it out
+    logical, intent(in) :: arith4
     integer :: i
     lat%single = single
     lat%shifted = single .and. shifted
-    if (present(arith4)) lat%arith4 = lat%shifted .and. arith4
+    lat%arith4 = lat%shifted .and. arith4
     if (single) then
       allocate (lat%s(0:nxp - 1, 0:nyl + 1, 0:8))
       do i = 0, 8
