@@ -102,8 +102,8 @@ contains
   !> How many elements the particle arrays need (>= 1): particles.count when the input gives it
   !! (file or --set) above 0, else the highest element any &particles array key is given (a
   !! scene without particles may keep unused values); 2 at least
-  !! for a pair scene (expand writes particles 1 and 2). A first read of the input that stores
-  !! the scalars into a scratch configuration and only counts array elements.
+  !! for a pair scene (expand writes particles 1 and 2). A first read of the input into a
+  !! scratch configuration whose particle arrays grow as elements are given.
   subroutine particle_slots(text, file, overrides, n, err)
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
@@ -113,12 +113,7 @@ contains
     type(registry_t) :: reg
     integer :: j, k
     n = 1
-    call particles_allocate(s%particles, 1)
-    call config_registry(s, reg)
-    do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) &
-        reg%keys(j)%open_to = MAX_PARTICLES
-    end do
+    call config_registry(s, reg, grow=.true.)
     ! An error stops this read where the second read will stop with the same message, whose
     ! index ranges then follow the count found up to there.
     call parse_namelist(reg, text, file, err)
@@ -128,10 +123,7 @@ contains
       call apply_override(reg, overrides(j), file, err)
     end do
     err = ''
-    n = 0
-    do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles') n = max(n, reg%keys(j)%top)
-    end do
+    n = reg%top
     ! a count out of range gets its message from the range check after the second read
     k = find_key(reg, 'particles', 'count')
     if (len(reg%keys(k)%origin) > 0 .and. s%particles%count > 0 .and. &
