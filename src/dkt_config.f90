@@ -150,7 +150,13 @@ contains
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
     character(len=:), allocatable, intent(out) :: err
+    integer :: m
     call read_fixed(n)
+    ! This read went to the end: a particles.count or &pair after the item that stopped the
+    ! first read may ask for more elements than n (x(::-1) = 5 fits one element only). Once
+    ! more at that size then, so that no particle lies beyond the arrays (expand, the checks).
+    m = particle_slots(cfg, reg)
+    if (len(err) == 0 .and. m > n) call read_fixed(m)
   contains
     subroutine read_fixed(slots)
       integer, intent(in) :: slots

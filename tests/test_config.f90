@@ -693,8 +693,9 @@ contains
   !! to the arrays a resize freed (values lost, or a choice array written to freed memory),
   !! growth by one element at a time (10^5 particles quadratic), the final size not that of
   !! the input (x(7), count, a pair, --set), the default column of cfg%given not as long as
-  !! the arrays, and an input the one read takes but the final size does not (it is refused
-  !! as before, with that size in the message).
+  !! the arrays, an input the one read takes but the final size does not (it is refused as
+  !! before, with that size in the message), and a count or pair after an item that fits one
+  !! size only (x(::-1)) leaving the particles beyond the arrays.
   subroutine test_particle_growth()
     type(config_t), target :: c
     type(config_t) :: cfg
@@ -763,6 +764,16 @@ contains
     call expect_error('a bad element before the one that sizes the arrays', &
                       '&particles x(1:9) = 1.0, y(1) = abc, y(9) = 2.0 /', &
                       [character(len=60) :: '&particles y(1) = abc is not a real number'])
+    ! x(::-1) selects element 1 of one element and none of more: the first read stops there,
+    ! before a count or a pair that asks for more; the arrays get that size all the same
+    call load_ok('x(::-1) of one element', '&particles x(::-1) = 5 /', cfg)
+    call check('x(::-1) of one element sets x(1)', &
+               size(cfg%particles%x) == 1 .and. same(cfg%particles%x(1), 5.0_wp))
+    call expect_error('x(::-1) before a pair', '&particles x(::-1) = 5 /'//NL// &
+                      '&pair gamma = 1.5, y_upper = 3 /', &
+                      [character(len=60) :: 'x(::-1)', 'selects no element (from 1 to 2'])
+    call expect_error('x(::-1) before count = 3', '&particles x(::-1) = 5, count = 3 /', &
+                      [character(len=60) :: 'x(::-1)', 'selects no element (from 1 to 3'])
   end subroutine test_particle_growth
 
   subroutine test_particle_scenes_accept()
