@@ -13,7 +13,7 @@
 !>   components (cfg%output_dir, cfg%given, lp%d1, ...) and take only types from here.
 module dkt_config
   use dkt_kinds, only: wp, MAX_PARTICLES
-  use dkt_registry, only: registry_t, find_key, check_key, value_text, allowed_text
+  use dkt_registry, only: registry_t, find_key, check_key, value_text, allowed_text, final_size
   use dkt_namelist, only: parse_namelist, apply_override
   use dkt_config_types, only: config_t, domain_cfg_t, fluid_cfg_t, lbm_cfg_t, inlet_cfg_t, &
                               initial_cfg_t, particle_cfg_t, particles_cfg_t, pair_cfg_t, &
@@ -50,6 +50,10 @@ contains
   !! one message a line, in the same form; '' when there is none or when `err` is set.
   !! `lp`: the lattice parameters of the valid configuration, from the one conversion of the
   !! checks (derive_lattice checks a configuration changed in code).
+  !!
+  !! One registry, one read of the text and the overrides: the particle arrays grow while they
+  !! are read (config_registry with grow) and are then sized as the input asks (particle_slots).
+  !! Only an input the read cannot take as it is gets a second read (read_again).
   subroutine config_load(cfg, text, file, overrides, err, warnings, lp)
     type(config_t), intent(out), target :: cfg !! intent(out): every component starts at default
     character(len=*), intent(in) :: text, file
@@ -61,22 +65,21 @@ contains
     type(lattice_params_t) :: derived
     type(registry_t), target :: reg
     type(text_t), allocatable :: defaults(:)
-    integer :: j
+    integer :: j, n
     if (present(warnings)) warnings = ''
     cfg%file = file
     cfg%name = basename(file)
-    call particle_slots(text, file, overrides, j, err)
-    if (len(err) > 0) return
-    call particles_allocate(cfg%particles, j)
-    call config_registry(cfg, reg)
+    call config_registry(cfg, reg, grow=.true.)
     call value_texts(reg, defaults) ! cfg holds the defaults until the text is read
-    call parse_namelist(reg, text, file, err)
-    if (len(err) > 0) return
-    do j = 1, size(overrides)
-      if (len_trim(overrides(j)) == 0) cycle
-      call apply_override(reg, overrides(j), file, err)
+    call read_input(reg, text, file, overrides, err)
+    n = particle_slots(cfg, reg)
+    if (len(err) == 0 .and. reg%skipped == 0 .and. reg%reach <= n) then
+      call final_size(reg, n)
+    else
+      call read_again(cfg, reg, n, text, file, overrides, err)
       if (len(err) > 0) return
-    end do
+    end if
+    call grown_defaults(reg, defaults)
     do j = 1, size(reg%keys)
       call check_key(reg%keys(j), cfg%file, err)
       if (len(err) > 0) return
@@ -99,46 +102,73 @@ contains
     if (present(lp)) lp = derived
   end subroutine config_load
 
-  !> How many elements the particle arrays need (>= 1): particles.count when the input gives it
-  !! (file or --set) above 0, else the highest element any &particles array key is given (a
-  !! scene without particles may keep unused values); 2 at least
-  !! for a pair scene (expand writes particles 1 and 2). A first read of the input that stores
-  !! the scalars into a scratch configuration and only counts array elements.
-  subroutine particle_slots(text, file, overrides, n, err)
+  !> The namelist `text`, then the `overrides`, into the keys of `reg`; `err` as config_load's,
+  !! from the first error, where the read stops.
+  subroutine read_input(reg, text, file, overrides, err)
+    type(registry_t), intent(inout) :: reg
     character(len=*), intent(in) :: text, file
     character(len=*), intent(in) :: overrides(:)
-    integer, intent(out) :: n
     character(len=:), allocatable, intent(out) :: err
-    type(config_t), target :: s
-    type(registry_t) :: reg
-    integer :: j, k
-    n = 1
-    call particles_allocate(s%particles, 1)
-    call config_registry(s, reg)
-    do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) &
-        reg%keys(j)%open_to = MAX_PARTICLES
-    end do
-    ! An error stops this read where the second read will stop with the same message, whose
-    ! index ranges then follow the count found up to there.
+    integer :: j
     call parse_namelist(reg, text, file, err)
     do j = 1, size(overrides)
-      if (len(err) > 0) exit
+      if (len(err) > 0) return
       if (len_trim(overrides(j)) == 0) cycle
       call apply_override(reg, overrides(j), file, err)
     end do
-    err = ''
-    n = 0
-    do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles') n = max(n, reg%keys(j)%top)
-    end do
-    ! a count out of range gets its message from the range check after the second read
-    k = find_key(reg, 'particles', 'count')
-    if (len(reg%keys(k)%origin) > 0 .and. s%particles%count > 0 .and. &
-        s%particles%count <= MAX_PARTICLES) n = s%particles%count
-    if (s%pair%gamma > 0.0_wp) n = max(n, 2)
+  end subroutine read_input
+
+  !> How many elements the particle arrays need (>= 1): particles.count when the input gives it
+  !! (file or --set) above 0, else the highest element any &particles array key is given (a
+  !! scene without particles may keep unused values); 2 at least for a pair scene (expand
+  !! writes particles 1 and 2). From `cfg` and `reg` after a read into arrays that grow; after
+  !! one that stopped at an error, from what it read up to there.
+  integer function particle_slots(cfg, reg) result(n)
+    type(config_t), intent(in) :: cfg
+    type(registry_t), intent(in) :: reg
+    n = reg%top
+    ! a count out of range gets its message from the range check after reading
+    if (len(reg%keys(find_key(reg, 'particles', 'count'))%origin) > 0 .and. &
+        cfg%particles%count > 0 .and. cfg%particles%count <= MAX_PARTICLES) &
+      n = cfg%particles%count
+    if (cfg%pair%gamma > 0.0_wp) n = max(n, 2)
     n = max(n, 1)
-  end subroutine particle_slots
+  end function particle_slots
+
+  !> The second read of an input that the one read of config_load could not take as it is: an
+  !! error stopped it, a value of a particle array did not convert (the read went past it), or
+  !! an item selects more elements than the arrays get (an index above particles.count, a
+  !! list longer than it). The messages of an index or of too many values name the size of the
+  !! particle arrays, `n`, known only after reading: `cfg` goes back to its defaults with
+  !! arrays of n elements, and the text and the overrides are read again into these fixed
+  !! sizes, as every load read them before (some inputs then fit, e.g. x(::-1) of one element,
+  !! and the load goes on). Errors are rare; only they pay for the second read.
+  subroutine read_again(cfg, reg, n, text, file, overrides, err)
+    type(config_t), intent(inout), target :: cfg
+    type(registry_t), intent(out) :: reg
+    integer, intent(in) :: n
+    character(len=*), intent(in) :: text, file
+    character(len=*), intent(in) :: overrides(:)
+    character(len=:), allocatable, intent(out) :: err
+    integer :: m
+    call read_fixed(n)
+    ! This read went to the end: a particles.count or &pair after the item that stopped the
+    ! first read may ask for more elements than n (x(::-1) = 5 fits one element only). Once
+    ! more at that size then, so that no particle lies beyond the arrays (expand, the checks).
+    m = particle_slots(cfg, reg)
+    if (len(err) == 0 .and. m > n) call read_fixed(m)
+  contains
+    subroutine read_fixed(slots)
+      integer, intent(in) :: slots
+      type(config_t) :: fresh
+      fresh%file = cfg%file
+      fresh%name = cfg%name
+      cfg = fresh
+      call particles_allocate(cfg%particles, slots)
+      call config_registry(cfg, reg)
+      call read_input(reg, text, file, overrides, err)
+    end subroutine read_fixed
+  end subroutine read_again
 
   !> Validate a configuration built or changed in code ('' if valid); `warnings` as in
   !! config_load.
@@ -227,6 +257,19 @@ contains
       texts(j)%s = value_text(reg%keys(j))
     end do
   end subroutine value_texts
+
+  !> The default texts `texts` (value_texts) taken when the particle arrays had one element,
+  !! for arrays of their size now: every element starts as particle_cfg_t, so the text of n
+  !! elements is that of one, n times, as value_text joins them.
+  subroutine grown_defaults(reg, texts)
+    type(registry_t), intent(in) :: reg
+    type(text_t), intent(inout) :: texts(:)
+    integer :: j
+    do j = 1, size(reg%keys)
+      if (reg%keys(j)%grows .and. reg%keys(j)%n > 1) &
+        texts(j)%s = repeat(texts(j)%s//', ', reg%keys(j)%n - 1)//texts(j)%s
+    end do
+  end subroutine grown_defaults
 
   !> The keys of `reg` with their values, and `defaults` (value_texts of the same keys at
   !! their defaults), as namelist text (config_to_namelist).

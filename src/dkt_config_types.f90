@@ -10,8 +10,8 @@ module dkt_config_types
   use dkt_choices, only: choice_code, END_NAMES, COLLISION_NAMES, STREAMING_NAMES, &
                          PRECISION_NAMES, PROFILE_NAMES, FLOW_NAMES, MOTION_NAMES, BB_NAMES, &
                          MOMENTUM_NAMES, INTERIOR_NAMES
-  use dkt_registry, only: registry_t, add_real, add_reals, add_integer, add_logical, &
-                          add_string, add_choice, add_choices
+  use dkt_registry, only: registry_t, key_t, add_real, add_reals, add_integer, add_logical, &
+                          add_string, add_choice, add_choices, rebind_grown
   use dkt_text, only: itoa
   implicit none
   private
@@ -102,9 +102,10 @@ module dkt_config_types
   end type particle_cfg_t
 
   !> &particles: rigid circular particles (docs/model.md §3), in physical units. Element k of each
-  !! array belongs to particle k; only particles 1..count are used. config_load allocates the
-  !! arrays to the size the input asks for (particle_slots), at least 1; particles_allocate
-  !! sizes them for a configuration built in code, each new element as particle_cfg_t.
+  !! array belongs to particle k; only particles 1..count are used. config_load grows the
+  !! arrays while it reads (config_registry with grow) and then sizes them as the input asks
+  !! (particle_slots), at least 1; particles_allocate sizes them for a configuration built in
+  !! code, each new element as particle_cfg_t.
   type, public :: particles_cfg_t
     integer :: count = 0                              !! number of particles, 0..MAX_PARTICLES
     real(wp), allocatable :: diameter(:)              !! cm
@@ -245,10 +246,21 @@ module dkt_config_types
 contains
 
   !> Bind every input key to its component of `c`, with unit, range and meaning: each group
-  !! registers its own keys, in the order they are documented and printed.
-  subroutine config_registry(c, reg)
+  !! registers its own keys, in the order they are documented and printed. With `grow`, the
+  !! particle arrays grow while the registry reads, up to MAX_PARTICLES (particles_resize), so
+  !! that config_load reads the input once and sizes them after; otherwise their sizes are
+  !! fixed, and an element beyond them is an error.
+  subroutine config_registry(c, reg, grow)
     type(config_t), intent(inout), target :: c
     type(registry_t), intent(out) :: reg
+    logical, intent(in), optional :: grow
+    if (present(grow)) then
+      if (grow) then
+        reg%resize => particles_resize
+        reg%owner => c
+        reg%limit = MAX_PARTICLES
+      end if
+    end if
     if (.not. allocated(c%particles%diameter)) &
       call particles_allocate(c%particles, max(1, c%particles%count))
     call c%domain%register(reg)
@@ -337,6 +349,25 @@ contains
       call move_alloc(t, a)
     end subroutine resize
   end subroutine particles_allocate
+
+  !> The resize hook of a registry that grows (config_registry): the particle arrays of the
+  !! configuration `owner` get n elements (particles_allocate: values kept, new elements at
+  !! the defaults), and the keys that grow are bound to them anew as particles_register binds
+  !! them, so that the keys are declared in one place.
+  subroutine particles_resize(owner, keys, n)
+    class(*), pointer, intent(in) :: owner
+    type(key_t), intent(inout) :: keys(:)
+    integer, intent(in) :: n
+    type(registry_t) :: fresh
+    select type (c => owner)
+    type is (config_t)
+      call particles_allocate(c%particles, n)
+      call c%particles%register(fresh)
+      call rebind_grown(keys, fresh)
+    class default
+      error stop 'dktlbm: error: internal error: particles_resize: the owner is no config_t'
+    end select
+  end subroutine particles_resize
 
   !> Register the keys of &domain, each bound to its component of `self`.
   subroutine domain_register(self, reg)
@@ -450,9 +481,11 @@ contains
                      'free (moved by fluid and gravity, E8), fixed (at rest) or prescribed '// &
                      '(u, v, omega kept)')
     do j = 1, size(reg%keys)
-      if (reg%keys(j)%group == 'particles' .and. reg%keys(j)%n > 0) reg%keys(j)%size_note = &
-        ' (the particle arrays have particles.count elements, at least 1; raise '// &
-        'particles.count for more particles, at most '//itoa(MAX_PARTICLES)//')'
+      if (reg%keys(j)%group /= 'particles' .or. reg%keys(j)%n == 0) cycle
+      reg%keys(j)%grows = .true.
+      reg%keys(j)%size_note = ' (the particle arrays have particles.count elements, at '// &
+                              'least 1; raise particles.count for more particles, at most '// &
+                              itoa(MAX_PARTICLES)//')'
     end do
     call add_real(reg, 'particles', 'gravity', self%gravity, 'cm/s^2', &
                   'gravity on the particles, along -y; acts as weight minus buoyancy (E9)', &

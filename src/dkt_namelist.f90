@@ -288,7 +288,10 @@ contains
 
   !> Store `raw` (value tokens, nulls included) into key `name` of group `g`; `name` may carry
   !! an index or a section, `name(i)`, `name(a:b)`, `name(a:b:s)`. Repeat counts are expanded
-  !! here; each value is converted and checked for its type.
+  !! here; each value is converted and checked for its type. An array that grows (key_t%grows,
+  !! with the registry's resize hook set) is read as if it had reg%limit elements and is
+  !! resized when a value goes beyond its size, to twice its size at least, so that n elements
+  !! cost O(n) copies; the registry notes what its final size must hold (top, reach).
   subroutine assign(reg, g, name, raw, loc, err)
     type(registry_t), intent(inout), target :: reg
     character(len=*), intent(in) :: g, name, loc
@@ -299,7 +302,7 @@ contains
     character(len=:), allocatable :: base, item, why, takes
     integer :: p, idx, first, step, slots, j, r, e, filled, n
     integer(int64) :: total
-    logical :: stored
+    logical :: stored, growing, open_end
     err = ''
     p = index(name, '(')
     base = lower_case(name)
@@ -318,16 +321,18 @@ contains
       return
     end if
 
-    ! The elements the values go to: first, first + step, ... (slots of them). A sizing read
-    ! (open_to > 0) takes elements up to open_to and only notes the highest.
+    ! The elements the values go to: first, first + step, ... (slots of them).
+    growing = k%grows .and. associated(reg%resize)
     n = k%n
-    if (k%open_to > 0) n = k%open_to
+    if (growing) n = reg%limit
+    open_end = .true.
     if (p > 0) then
       if (k%n == 0) then
         err = loc//': '//item//': '//base//' is not an array; write '//base//' = value'
         return
       end if
-      call select_elements(name(p + 1:len(name) - 1), base, n, first, step, slots, why)
+      call select_elements(name(p + 1:len(name) - 1), base, n, first, step, slots, open_end, &
+                           why)
       if (len(why) > 0) then
         err = loc//': '//item//': '//why//k%size_note
         return
@@ -353,6 +358,18 @@ contains
       err = err//'); '//takes//trim(merge(' value ', ' values', slots == 1))//k%size_note
       return
     end if
+    if (growing) then
+      ! Read with the final size n in place of limit, the item must select the same elements
+      ! and take its values: reach is the least n for which it does. A selection that runs to
+      ! the end of the array (key = .., key(i) = .., key(a::s) = ..) needs room for every value,
+      ! nulls too; a section with an upper bound, for every element it selects. (Of a section
+      ! a::s with s < 0, only a = limit with at most one value gets here.)
+      if (open_end) then
+        reg%reach = max(reg%reach, first + (max(int(total), 1) - 1)*step)
+      else
+        reg%reach = max(reg%reach, first, first + (slots - 1)*step)
+      end if
+    end if
 
     filled = 0
     stored = .false.
@@ -362,11 +379,20 @@ contains
         filled = filled + 1
         if (vals(j)%null) cycle
         if (k%n == 0) e = 0
-        k%top = max(k%top, e)
-        if (k%open_to > 0) cycle
+        if (growing) then
+          reg%top = max(reg%top, e)
+          if (e > k%n) call reg%resize(reg%owner, reg%keys, min(reg%limit, max(e, 2*k%n)))
+        end if
         call store(k, e, vals(j)%tok, '&'//g//' '//element(base, e)//' = '// &
                    display(vals(j)%tok), why)
         if (len(why) > 0) then
+          ! A value that does not convert, of an array that grows: counted, and the read goes
+          ! on, so that top is that of the whole input; the owner reads again with the arrays
+          ! at their final size for the message (config_load).
+          if (growing) then
+            reg%skipped = reg%skipped + 1
+            cycle
+          end if
           err = loc//': '//why//'; allowed: '//allowed_text(k)//' ('//k%meaning//')'
           return
         end if
@@ -430,12 +456,14 @@ contains
 
   !> The elements an index `sub` ('i', 'a:b' or 'a:b:s', bounds and stride optional) selects
   !! of an array `base` of n elements: first, first + step, ... (count of them). An index i
-  !! selects elements i..n (a list of values after key(i) fills on from i). `why` says what is
-  !! wrong ('' if nothing).
-  subroutine select_elements(sub, base, n, first, step, count, why)
+  !! selects elements i..n (a list of values after key(i) fills on from i). `open_end`: the
+  !! selection runs to the end of the array (an index, or a section without an upper bound),
+  !! so that its count follows n. `why` says what is wrong ('' if nothing).
+  subroutine select_elements(sub, base, n, first, step, count, open_end, why)
     character(len=*), intent(in) :: sub, base
     integer, intent(in) :: n
     integer, intent(out) :: first, step, count
+    logical, intent(out) :: open_end
     character(len=:), allocatable, intent(out) :: why
     character(len=:), allocatable :: des, range_text
     character(len=len(sub)) :: part(3) !! lower bound, upper bound, stride as written
@@ -448,6 +476,7 @@ contains
     first = 1
     step = 1
     count = 0
+    open_end = .true.
     if (scan(sub, ',') > 0) then
       why = base//' has one dimension: write '//base//'(i), '//base//'(a:b) or '//base//'(a:b:s)'
       return
@@ -477,6 +506,7 @@ contains
     else
       part = [character(len=len(sub)) :: sub(:c1 - 1), sub(c1 + 1:), '']
     end if
+    open_end = len_trim(part(2)) == 0
     v = [1, n, 1] ! the defaults of an omitted bound or stride
     do j = 1, 3
       if (len_trim(part(j)) == 0) cycle

@@ -14,7 +14,7 @@ module dkt_registry
   public :: KEY_REAL, KEY_INTEGER, KEY_LOGICAL, KEY_STRING, KEY_CHOICE
   public :: add_real, add_reals, add_integer, add_logical, add_string, add_choice, add_choices
   public :: find_key, has_group, origin_of, blame, unknown_group_hint, unknown_key_hint, check_key
-  public :: value_text, allowed_text, type_name, text_length
+  public :: value_text, allowed_text, type_name, text_length, rebind_grown, final_size
 
   integer, parameter :: KEY_REAL = 1, KEY_INTEGER = 2, KEY_LOGICAL = 3, KEY_STRING = 4, &
                         KEY_CHOICE = 5
@@ -41,8 +41,8 @@ module dkt_registry
     character(len=:), allocatable :: origin  !! 'file:line' or '--set ...' of the last assignment
     !> an array sized from the input: what its size follows, appended to an index error
     character(len=:), allocatable :: size_note
-    integer :: open_to = 0 !! > 0: a sizing read, elements 1..open_to are counted, not stored
-    integer :: top = 0     !! the highest element a value went to
+    !> an array sized from the input: it grows while a registry with a resize hook reads
+    logical :: grows = .false.
     real(wp), pointer :: r => null()
     real(wp), pointer :: ra(:) => null()
     integer, pointer :: i => null()
@@ -51,10 +51,37 @@ module dkt_registry
     type(text_ref_t), allocatable :: sa(:)   !! the elements of an array of choices
   end type key_t
 
+  abstract interface
+    !> Give the arrays of the keys that grow (key_t%grows), owned by `owner`, n elements each,
+    !! keeping the values of the elements they had, and bind those keys to the new arrays.
+    subroutine resize_hook(owner, keys, n)
+      import :: key_t
+      class(*), pointer, intent(in) :: owner
+      type(key_t), intent(inout) :: keys(:)
+      integer, intent(in) :: n
+    end subroutine resize_hook
+  end interface
+
   !> The keys of a configuration, in the order they are documented and printed.
+  !!
+  !! A registry with a `resize` hook reads the arrays of the keys that grow without knowing
+  !! their size in advance: an element beyond an array's size makes the parser call the hook
+  !! (up to `limit` elements), so the text is read once and the owner sizes the arrays after
+  !! reading (final_size). Such a read also notes what that final size must hold (`top`,
+  !! `reach`) and goes on past a value of such an array that does not convert (`skipped`).
   type :: registry_t
     type(key_t), allocatable :: keys(:)
     character(len=:), allocatable :: groups  !! group names in order, blank-separated
+    procedure(resize_hook), pointer, nopass :: resize => null() !! null: every size is fixed
+    class(*), pointer :: owner => null()     !! what `resize` resizes (the configuration)
+    integer :: limit = 0   !! the most elements an array that grows may get
+    integer :: top = 0     !! the highest element a value went to in an array that grows
+    !> the fewest elements the arrays that grow need for every item read to select, at that
+    !! size, the elements it selected (select_elements, the count of values)
+    integer :: reach = 0
+    !> values for arrays that grow that did not convert; the read went on past them, counting
+    !! elements, so that its top is that of the whole input
+    integer :: skipped = 0
   end type registry_t
 
 contains
@@ -160,6 +187,31 @@ contains
       k%choices = trim(adjustl(choices))
     end associate
   end subroutine add_choices
+
+  !> Bind each key of `keys` that grows to the value of the key of the same group and name in
+  !! `fresh`, a registration of the arrays just resized (for a resize hook: the keys are
+  !! declared once, by the procedure that registers them).
+  subroutine rebind_grown(keys, fresh)
+    type(key_t), intent(inout) :: keys(:)
+    type(registry_t), intent(inout) :: fresh
+    integer :: j, i
+    do j = 1, size(keys)
+      if (.not. keys(j)%grows) cycle
+      i = find_key(fresh, keys(j)%group, keys(j)%name)
+      keys(j)%n = fresh%keys(i)%n
+      keys(j)%ra => fresh%keys(i)%ra
+      if (allocated(fresh%keys(i)%sa)) call move_alloc(fresh%keys(i)%sa, keys(j)%sa)
+    end do
+  end subroutine rebind_grown
+
+  !> After a read into arrays that grow: give them their final size, n elements, and end the
+  !! growing, so that later reads see fixed sizes.
+  subroutine final_size(reg, n)
+    type(registry_t), intent(inout) :: reg
+    integer, intent(in) :: n
+    call reg%resize(reg%owner, reg%keys, n)
+    reg%resize => null()
+  end subroutine final_size
 
   subroutine set_range(k, gt, ge, lt, le, zero_ok)
     type(key_t), intent(inout) :: k

@@ -12,7 +12,8 @@ program test_config
                         config_output_dir, particles_allocate, particles_cfg_t, MAX_PARTICLES, &
                         particle_cfg_t
   use dkt_text, only: printable
-  use dkt_registry, only: registry_t, KEY_CHOICE
+  use dkt_registry, only: registry_t, KEY_CHOICE, find_key, final_size
+  use dkt_namelist, only: parse_namelist, apply_override
   use dkt_config, only: config_registry, config_choices
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, COLLISION_MRT, &
                          COLLISION_BGK, STREAMING_IN_PLACE, STREAMING_TWO_LATTICE, &
@@ -44,6 +45,7 @@ program test_config
   call test_errors()
   call test_particle_keys()
   call test_particle_sizing()
+  call test_particle_growth()
   call test_particle_scenes_accept()
   call test_particle_warnings()
   call test_particle_errors()
@@ -683,6 +685,96 @@ contains
                size(p%x) == 1 .and. same(p%x(1), 0.5_wp) .and. size(p%motion) == 1)
     call check('MAX_PARTICLES is the checkpoint limit, 10^6', MAX_PARTICLES == 1000000)
   end subroutine test_particle_sizing
+
+  !> The particle arrays are sized while the input is read, in one read: a registry built
+  !! with grow gives the arrays of the configuration more elements as the parser reaches them
+  !! (its resize hook), and config_load sizes them to the final count after the one read.
+  !! Bugs caught: a value beyond the arrays refused or written past them, the keys left bound
+  !! to the arrays a resize freed (values lost, or a choice array written to freed memory),
+  !! growth by one element at a time (10^5 particles quadratic), the final size not that of
+  !! the input (x(7), count, a pair, --set), the default column of cfg%given not as long as
+  !! the arrays, an input the one read takes but the final size does not (it is refused as
+  !! before, with that size in the message), and a count or pair after an item that fits one
+  !! size only (x(::-1)) leaving the particles beyond the arrays.
+  subroutine test_particle_growth()
+    type(config_t), target :: c
+    type(config_t) :: cfg
+    type(registry_t) :: reg
+    type(particle_cfg_t) :: d !! its initialisers: the defaults of one particle
+    character(len=:), allocatable :: err
+    integer :: k
+    ! the registry level: the arrays grow during the read, before any final sizing
+    call config_registry(c, reg, grow=.true.)
+    call check('grow: the arrays start with 1 element', size(c%particles%x) == 1)
+    call parse_namelist(reg, '&particles x(1) = 0.5, motion(1) = ''fixed'' /'//NL// &
+                        '&particles x(5) = 1.5, motion(9) = ''prescribed'' /', FILE, err)
+    call check('grow: x(5) and motion(9) are read without an error', len(err) == 0)
+    call check('grow: the arrays grew while reading, all alike, to hold element 9', &
+               size(c%particles%x) >= 9 .and. size(c%particles%motion) == size(c%particles%x))
+    call check('grow: the values before and after a resize are in the configuration', &
+               same(c%particles%x(1), 0.5_wp) .and. same(c%particles%x(5), 1.5_wp) .and. &
+               c%particles%motion(1) == 'fixed' .and. c%particles%motion(9) == 'prescribed')
+    k = find_key(reg, 'particles', 'x')
+    call check('grow: the keys are bound to the grown arrays', &
+               reg%keys(k)%n == size(c%particles%x) .and. &
+               associated(reg%keys(k)%ra, c%particles%x))
+    call check('grow: the highest element given is noted (9)', reg%top == 9)
+    ! twice the size at least: x(5) on 1 element gives 5, x(6) then 10, not 6
+    call config_registry(c, reg, grow=.true.)
+    call apply_override(reg, 'particles.x(5)=1', FILE, err)
+    call apply_override(reg, 'particles.x(6)=2', FILE, err)
+    call check('grow: the arrays grow geometrically, so n elements cost O(n) copies', &
+               size(c%particles%x) == 10 .and. same(c%particles%x(6), 2.0_wp))
+    call final_size(reg, 6)
+    call check('final_size: the arrays get the final size, the values kept', &
+               size(c%particles%x) == 6 .and. reg%keys(k)%n == 6 .and. &
+               same(c%particles%x(5), 1.0_wp) .and. same(c%particles%x(6), 2.0_wp))
+    call apply_override(reg, 'particles.x(7)=3', FILE, err)
+    call check('final_size: the arrays grow no more, element 7 of 6 is an error', &
+               index(err, 'index 7 is out of range; x has 6 elements') > 0)
+    ! config_load: the final size is the input's, the elements not given at the defaults
+    call load_ok('x(7) without count', '&particles x(7) = 1.5 /', cfg)
+    call check('x(7) without count: 7 elements, elements 1..6 at the defaults', &
+               size(cfg%particles%x) == 7 .and. size(cfg%particles%motion) == 7 .and. &
+               all(same(cfg%particles%x(1:6), d%x)) .and. same(cfg%particles%x(7), 1.5_wp) &
+               .and. all(same(cfg%particles%diameter, d%diameter)))
+    call check('x(7): the default column of the input as read has 7 elements', &
+               index(cfg%given, 'default: '//repeat('1.0, ', 6)//'1.0;') > 0 .and. &
+               index(cfg%given, 'default: '//repeat('1.0, ', 7)) == 0)
+    call load_ok('count above the highest element', '&particles count = 3, x = 0.5, 1.5,'// &
+                 ' y = 2, 3 /', cfg)
+    call check('count = 3 and 2 values: 3 elements, element 3 at the defaults', &
+               size(cfg%particles%x) == 3 .and. size(cfg%particles%omega) == 3 .and. &
+               same(cfg%particles%x(3), d%x) .and. same(cfg%particles%y(3), d%y) .and. &
+               all(cfg%particles%motion == d%motion))
+    call load_ok('a pair scene, no particle keys', '&pair gamma = 1.5, y_upper = 3 /', cfg)
+    call check('a pair scene: exactly 2 elements', size(cfg%particles%diameter) == 2)
+    call load_ok('--set particles.y(9)', '&particles x(2) = 0.5 /', cfg, &
+                 [character(len=20) :: 'particles.y(9)=3.5'])
+    call check('--set particles.y(9) = 3.5 grows the arrays to 9', &
+               size(cfg%particles%y) == 9 .and. same(cfg%particles%y(9), 3.5_wp) .and. &
+               same(cfg%particles%x(2), 0.5_wp) .and. same(cfg%particles%x(9), d%x))
+    ! taken by a read into arrays that grow, refused at the final size, with it in the message
+    call expect_error('a null beyond the final size', '&particles x = 1.0, 3* /', &
+                      [character(len=60) :: 'x = 1.0, 3*', 'too many values (4, counting '// &
+                       'repeats)', 'x takes 1 value (the particle arrays'])
+    call expect_error('a section beyond the final size', '&particles x(1:9) = 1.0 /', &
+                      [character(len=60) :: 'selects element 9', 'x has 1 element'])
+    ! a bad element: the read goes past it, so that y(9) sizes the arrays for x(1:9)
+    call expect_error('a bad element before the one that sizes the arrays', &
+                      '&particles x(1:9) = 1.0, y(1) = abc, y(9) = 2.0 /', &
+                      [character(len=60) :: '&particles y(1) = abc is not a real number'])
+    ! x(::-1) selects element 1 of one element and none of more: the first read stops there,
+    ! before a count or a pair that asks for more; the arrays get that size all the same
+    call load_ok('x(::-1) of one element', '&particles x(::-1) = 5 /', cfg)
+    call check('x(::-1) of one element sets x(1)', &
+               size(cfg%particles%x) == 1 .and. same(cfg%particles%x(1), 5.0_wp))
+    call expect_error('x(::-1) before a pair', '&particles x(::-1) = 5 /'//NL// &
+                      '&pair gamma = 1.5, y_upper = 3 /', &
+                      [character(len=60) :: 'x(::-1)', 'selects no element (from 1 to 2'])
+    call expect_error('x(::-1) before count = 3', '&particles x(::-1) = 5, count = 3 /', &
+                      [character(len=60) :: 'x(::-1)', 'selects no element (from 1 to 3'])
+  end subroutine test_particle_growth
 
   subroutine test_particle_scenes_accept()
     type(config_t) :: cfg
