@@ -2,8 +2,7 @@
 !> checkpoint_state_t), set up from the checked input, stepped through the time loop and
 !> finished. The driver calls run_setup, run_execute and run_finish.
 module dkt_run
-  use, intrinsic :: ieee_arithmetic, only: ieee_support_underflow_control, &
-                                           ieee_set_underflow_mode
+  use ieee_arithmetic, only: ieee_support_underflow_control, ieee_set_underflow_mode
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, sp
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
