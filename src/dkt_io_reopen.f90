@@ -246,32 +246,37 @@ contains
   integer function field_rows(io, path) result(n)
     type(io_t), intent(in) :: io
     character(len=*), intent(in) :: path
-    integer(hid_t) :: dset
     integer(hsize_t) :: dims(2)
-    integer :: hdferr, nd
-    call h5dopen_f(io%file_id, path, dset, hdferr)
-    call check(hdferr, 'h5dopen_f('//path//')', io%path)
-    call extent(io, dset, path, nd, dims)
+    integer :: nd
+    call dataset_extent(io, path, nd, dims)
     n = io%ny
     if (nd == 2) n = int(dims(2))
-    call h5dclose_f(dset, hdferr)
-    call check(hdferr, 'h5dclose_f('//path//')', io%path)
   end function field_rows
 
   !> Length of the 1-D dataset `path`.
   integer function dataset_length(io, path) result(n)
     type(io_t), intent(in) :: io
     character(len=*), intent(in) :: path
-    integer(hid_t) :: dset
     integer(hsize_t) :: dims(2)
-    integer :: hdferr, nd
+    integer :: nd
+    call dataset_extent(io, path, nd, dims)
+    n = int(dims(1))
+  end function dataset_length
+
+  !> The rank `nd` and extents `dims` of the dataset `path` (opened and closed here).
+  subroutine dataset_extent(io, path, nd, dims)
+    type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: nd
+    integer(hsize_t), intent(out) :: dims(2)
+    integer(hid_t) :: dset
+    integer :: hdferr
     call h5dopen_f(io%file_id, path, dset, hdferr)
     call check(hdferr, 'h5dopen_f('//path//')', io%path)
     call extent(io, dset, path, nd, dims)
-    n = int(dims(1))
     call h5dclose_f(dset, hdferr)
     call check(hdferr, 'h5dclose_f('//path//')', io%path)
-  end function dataset_length
+  end subroutine dataset_extent
 
   !> The rank `nd` (1 or 2) and dimensions of the open dataset `dset` at `what`.
   subroutine extent(io, dset, what, nd, dims)
