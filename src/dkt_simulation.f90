@@ -465,6 +465,8 @@ contains
     integer, intent(in) :: n
     integer :: k
     character(len=400) :: msg
+    character(len=:), allocatable :: key, why
+    real(wp) :: limit
     call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
     k = window_escaped(sim%win, sim%parts, sim%lp%ny)
     do while (k > 0 .and. sim%lp%ny < sim%lp%ny_max)
@@ -476,19 +478,19 @@ contains
       k = window_escaped(sim%win, sim%parts, sim%lp%ny)
     end do
     if (k > 0) then
-      if (sim%cfg%window%max_above == 0.0_wp) then
-        write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
-          ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
-          n*sim%lp%dt, ' s): the particles separated by more than the window holds ('// &
-          'window.above = ', sim%cfg%window%above, ' D_1); the run ends here. Raise '// &
-          'window.above to follow them further'
-      else
-        write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
-          ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
-          n*sim%lp%dt, ' s), and the window has grown to its limit (window.max_above = ', &
-          sim%cfg%window%max_above, ' D_1); the run ends here. Raise window.max_above to '// &
-          'follow them further'
+      ! a window of fixed length, or one grown to its limit: the key that would hold the pair
+      key = 'above'
+      limit = sim%cfg%window%above
+      why = ': the particles separated by more than the window holds ('
+      if (sim%cfg%window%max_above > 0.0_wp) then
+        key = 'max_above'
+        limit = sim%cfg%window%max_above
+        why = ', and the window has grown to its limit ('
       end if
+      write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
+        ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &
+        n*sim%lp%dt, ' s)'//why//'window.'//key//' = ', limit, ' D_1); the run ends '// &
+        'here. Raise window.'//key//' to follow them further'
       sim%stopped_early = trim(msg)
     end if
   end subroutine follow_particles
