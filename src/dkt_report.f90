@@ -1,8 +1,8 @@
 !> What the run tells its user on the log: the start-up summary (derived lattice, sizes,
 !> memory, models, output), a progress line now and then, and the performance at the end.
 module dkt_report
-  use mpi_f08, only: MPI_Wtime
-  use dkt_kinds, only: wp, i8
+  use mpi_f08, only: MPI_Wtime, MPI_Allreduce, MPI_SUM, MPI_IN_PLACE
+  use dkt_kinds, only: wp, i8, MPI_WP
   use dkt_errors, only: warn
   use dkt_mrt, only: collision_describe
   use dkt_diagnostics, only: SQ_UNDAMPED
@@ -13,6 +13,7 @@ module dkt_report
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
+  use dkt_timers, only: timer_seconds, timer_name, N_PARTS
   implicit none
   private
   public :: progress_t, report_summary, report_start, report_progress, report_performance
@@ -183,6 +184,39 @@ contains
       int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
+    call report_parts(sim, t)
   end subroutine report_performance
+
+  !> The `time per part` line: each part's share of the loop's wall time t, the mean over the
+  !! ranks (dkt_timers says what each part holds; `other` is the rest: the step counters, the
+  !! loop itself). A rank that waits for a neighbour's halo counts the wait in `flow`.
+  subroutine report_parts(sim, t)
+    type(simulation_t), intent(in) :: sim
+    real(wp), intent(in) :: t
+    real(wp) :: share(N_PARTS + 1)
+    character(len=:), allocatable :: line
+    integer :: k
+    ! each rank's shares of its own loop time, then their mean
+    share(1:N_PARTS) = 100.0_wp*timer_seconds()/max(t, 1.0e-9_wp)
+    share(N_PARTS + 1) = max(100.0_wp - sum(share(1:N_PARTS)), 0.0_wp)
+    call MPI_Allreduce(MPI_IN_PLACE, share, N_PARTS + 1, MPI_WP, MPI_SUM, sim%dom%comm)
+    share = share/sim%dom%nranks
+    line = 'time per part:'
+    do k = 1, N_PARTS
+      line = line//' '//timer_name(k)//' '//fixed1(share(k))//' %,'
+    end do
+    call log_line(line//' other '//fixed1(share(N_PARTS + 1))//' % (mean over '// &
+                  counted(sim%dom%nranks, 'rank')//')')
+  end subroutine report_parts
+
+  !> x with one decimal.
+  function fixed1(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write (buf, '(f0.1)') x
+    s = trim(buf)
+    if (s(1:1) == '.') s = '0'//s
+  end function fixed1
 
 end module dkt_report
