@@ -9,6 +9,7 @@ module dkt_report
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
+  use dkt_domain, only: domain_t, domain_resize
   use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
@@ -37,6 +38,8 @@ contains
     character(len=256) :: particles, window
     real(wp) :: s(0:8), mem(3)
     integer :: k
+    type(domain_t) :: largest
+    character(len=:), allocatable :: grown
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
       line = 'scene '//trim(cfg%file)//' on '//counted(dom%nranks, 'rank')
@@ -78,6 +81,15 @@ contains
         int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
       call log_line(trim(line))
       mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
+      grown = ''
+      if (lp%ny_max > lp%ny) then
+        ! a window that may grow (window.max_above): what rank 0 holds at its largest, the
+        ! figure the memory check (dkt_memory) took
+        largest = dom
+        call domain_resize(largest, lp%ny_max)
+        grown = ' (up to '//fixed2(sum(rank_memory(cfg, lp, largest%nxp, largest%nyl))/MIB)// &
+                ' MiB in all once the window has grown to '//itoa(lp%ny_max)//' rows)'
+      end if
       if (sim%particles_on) then
         write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
           ' boundary links on rank 0)'
@@ -95,8 +107,8 @@ contains
              '; populations stored in '//itoa(lattice_bytes(cfg%lbm%precision_kind))// &
              ' bytes, lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
-             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
-             trim(particles)//'; '//trim(window)
+             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing'// &
+             grown//'; '//trim(particles)//'; '//trim(window)
       call log_line(trim(line))
       line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
