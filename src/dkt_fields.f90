@@ -7,7 +7,7 @@ module dkt_fields
   use dkt_store, only: lattice_t, lattice_get_node
   implicit none
   private
-  public :: node_moments, macroscopic, vorticity
+  public :: node_moments, row_speed2, macroscopic, vorticity
 
 contains
 
@@ -21,6 +21,27 @@ contains
     ux = (fn(1) - fn(3) + fn(5) - fn(6) - fn(7) + fn(8) - 0.5_wp*force(1))/rho
     uy = (fn(2) - fn(4) + fn(5) + fn(6) - fn(7) - fn(8) - 0.5_wp*force(2))/rho
   end subroutine node_moments
+
+  !> The density and the squared speed u_x² + u_y² of each column of one row (fr as
+  !! lattice_get_row gives it), each node's moments in node_moments' order of operations, so
+  !! that each value has its bits; the loop vectorises along x.
+  pure subroutine row_speed2(fr, nx, force, rho, u2)
+    real(wp), intent(in) :: fr(:, 0:)
+    integer, intent(in) :: nx
+    real(wp), intent(in) :: force(2)
+    real(wp), intent(out) :: rho(:), u2(:)
+    real(wp) :: ux, uy
+    integer :: x
+    do x = 1, nx
+      rho(x) = fr(x, 0) + fr(x, 1) + fr(x, 2) + fr(x, 3) + fr(x, 4) + fr(x, 5) + fr(x, 6) + &
+               fr(x, 7) + fr(x, 8)
+      ux = (fr(x, 1) - fr(x, 3) + fr(x, 5) - fr(x, 6) - fr(x, 7) + fr(x, 8) - &
+            0.5_wp*force(1))/rho(x)
+      uy = (fr(x, 2) - fr(x, 4) + fr(x, 5) + fr(x, 6) - fr(x, 7) - fr(x, 8) - &
+            0.5_wp*force(2))/rho(x)
+      u2(x) = ux*ux + uy*uy
+    end do
+  end subroutine row_speed2
 
   !> rho, ux, uy (lattice units) on rows 1..nyl of the slab, from the unshifted 8-byte
   !! populations whatever lbm.precision stores.

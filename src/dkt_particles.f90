@@ -300,7 +300,7 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
-    real(wp) :: px, py
+    real(wp) :: px, py, dist2, near2, deep2
     call place_for_nodes(ps)
     n = 0
     ps%ninner = 0
@@ -309,11 +309,19 @@ contains
     do k = 1, ps%n
       associate (p => ps%p(k))
         call box(p, dom, i1, i2, j1, j2)
+        ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
+        ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
+        ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
+        ! between is searched, with the same links in the same order
+        near2 = (p%r + 1.5_wp)**2
+        deep2 = max(p%r - 1.5_wp, 0.0_wp)**2
         do j = j1, j2
           jg = dom%y0 + j
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
+            dist2 = (px - p%x)**2 + (py - p%y)**2
+            if (dist2 >= near2 .or. dist2 < deep2) cycle
             if (.not. is_fluid(ps, dom, i, jg)) then
               if (ps%fluid_interior) then
                 if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)

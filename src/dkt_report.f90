@@ -1,18 +1,20 @@
 !> What the run tells its user on the log: the start-up summary (derived lattice, sizes,
 !> memory, models, output), a progress line now and then, and the performance at the end.
 module dkt_report
-  use mpi_f08, only: MPI_Wtime
-  use dkt_kinds, only: wp, i8
+  use mpi_f08, only: MPI_Wtime, MPI_Allreduce, MPI_SUM, MPI_IN_PLACE
+  use dkt_kinds, only: wp, i8, MPI_WP
   use dkt_errors, only: warn
   use dkt_mrt, only: collision_describe
   use dkt_diagnostics, only: SQ_UNDAMPED
   use dkt_log, only: log_line
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
+  use dkt_domain, only: domain_t, domain_resize
   use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
+  use dkt_timers, only: timer_seconds, timer_name, N_PARTS
   implicit none
   private
   public :: progress_t, report_summary, report_start, report_progress, report_performance
@@ -36,6 +38,8 @@ contains
     character(len=256) :: particles, window
     real(wp) :: s(0:8), mem(3)
     integer :: k
+    type(domain_t) :: largest
+    character(len=:), allocatable :: grown
     associate (lp => sim%lp, cfg => sim%cfg, dom => sim%dom)
       call log_line('dktlbm '//dkt_version_string//' ('//dkt_git_revision//')')
       line = 'scene '//trim(cfg%file)//' on '//counted(dom%nranks, 'rank')
@@ -77,6 +81,15 @@ contains
         int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
       call log_line(trim(line))
       mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
+      grown = ''
+      if (lp%ny_max > lp%ny) then
+        ! a window that may grow (window.max_above): what rank 0 holds at its largest, the
+        ! figure the memory check (dkt_memory) took
+        largest = dom
+        call domain_resize(largest, lp%ny_max)
+        grown = ' (up to '//fixed2(sum(rank_memory(cfg, lp, largest%nxp, largest%nyl))/MIB)// &
+                ' MiB in all once the window has grown to '//itoa(lp%ny_max)//' rows)'
+      end if
       if (sim%particles_on) then
         write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
           ' boundary links on rank 0)'
@@ -94,8 +107,8 @@ contains
              '; populations stored in '//itoa(lattice_bytes(cfg%lbm%precision_kind))// &
              ' bytes, lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
-             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing; '// &
-             trim(particles)//'; '//trim(window)
+             fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing'// &
+             grown//'; '//trim(particles)//'; '//trim(window)
       call log_line(trim(line))
       line = 'models: '//merge('BGK (E4)        ', 'MRT (E1-E3)     ', sim%coll%bgk)
       line = trim(line)//', sides '//trim(cfg%domain%sides)//', lower end '// &
@@ -183,6 +196,39 @@ contains
       int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
+    call report_parts(sim, t)
   end subroutine report_performance
+
+  !> The `time per part` line: each part's share of the loop's wall time t, the mean over the
+  !! ranks (dkt_timers says what each part holds; `other` is the rest: the step counters, the
+  !! loop itself). A rank that waits for a neighbour's halo counts the wait in `flow`.
+  subroutine report_parts(sim, t)
+    type(simulation_t), intent(in) :: sim
+    real(wp), intent(in) :: t
+    real(wp) :: share(N_PARTS + 1)
+    character(len=:), allocatable :: line
+    integer :: k
+    ! each rank's shares of its own loop time, then their mean
+    share(1:N_PARTS) = 100.0_wp*timer_seconds()/max(t, 1.0e-9_wp)
+    share(N_PARTS + 1) = max(100.0_wp - sum(share(1:N_PARTS)), 0.0_wp)
+    call MPI_Allreduce(MPI_IN_PLACE, share, N_PARTS + 1, MPI_WP, MPI_SUM, sim%dom%comm)
+    share = share/sim%dom%nranks
+    line = 'time per part:'
+    do k = 1, N_PARTS
+      line = line//' '//timer_name(k)//' '//fixed1(share(k))//' %,'
+    end do
+    call log_line(line//' other '//fixed1(share(N_PARTS + 1))//' % (mean over '// &
+                  counted(sim%dom%nranks, 'rank')//')')
+  end subroutine report_parts
+
+  !> x with one decimal.
+  function fixed1(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write (buf, '(f0.1)') x
+    s = trim(buf)
+    if (s(1:1) == '.') s = '0'//s
+  end function fixed1
 
 end module dkt_report

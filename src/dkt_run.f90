@@ -11,6 +11,8 @@ module dkt_run
   use dkt_window, only: window_offset
   use dkt_log, only: log_line
   use dkt_text, only: itoa
+  use dkt_timers, only: timer_reset, timer_start, timer_stop, PART_GUARDS, PART_OUTPUT, &
+                        PART_CHECKPOINTS
   use dkt_simulation, only: simulation_t, simulation_setup, simulation_step, simulation_finish
   use dkt_output, only: output_t, output_open, output_check_dir, output_check_existing, &
                         output_initial, output_scheduled, output_final, output_close, &
@@ -81,6 +83,7 @@ contains
       call output_initial(out, sim)
       call checkpoint_start(chk)
       call report_start(prog, sim%step + 1)
+      call timer_reset()
       failure = ''
       placed = ''
       do n = sim%step + 1, lp%steps
@@ -95,6 +98,7 @@ contains
         ! become unstable, and then the guard's diagnosis (where, what to change) is the one
         ! to give.
         ! the particle speed guard is cheap (one test per particle), so it runs every step
+        call timer_start(PART_GUARDS)
         fast = ''
         if (sim%particles_move .and. len(failure) == 0) &
           fast = guard_particle_speed(sim%parts%p%u, sim%parts%p%v, sim%parts%p%x, &
@@ -111,7 +115,11 @@ contains
           failure = fast
           if (len(failure) > 0) exit
         end if
+        call timer_stop(PART_GUARDS)
+        call timer_start(PART_OUTPUT)
         if (.not. last) call output_scheduled(out, sim, n)
+        call timer_stop(PART_OUTPUT)
+        call timer_start(PART_GUARDS)
         if (cfg%run%progress_every > 0) then
           if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
             ! the progress line reports the current Mach number, which the guard measures
@@ -123,7 +131,10 @@ contains
             call report_progress(sim, prog, n, mach)
           end if
         end if
+        call timer_stop(PART_GUARDS)
+        call timer_start(PART_CHECKPOINTS)
         call checkpoint_due(chk, out, sim, last, stop)
+        call timer_stop(PART_CHECKPOINTS)
         if (stop .or. last) exit
       end do
       call checkpoint_finish(chk)

@@ -29,6 +29,7 @@ module dkt_simulation
   use dkt_memory, only: check_memory
   use dkt_text, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
+  use dkt_timers, only: timer_start, timer_stop, PART_FLOW, PART_LINKS, PART_PARTICLES, PART_WINDOW
   implicit none
   private
   public :: simulation_t, simulation_setup, simulation_step, simulation_finish, simulation_grow
@@ -222,7 +223,11 @@ contains
     call swap_lattices(sim)
     sim%step = n
     sim%updates = sim%updates + int(sim%lp%nx, i8)*int(sim%lp%ny, i8)
-    if (sim%pair_on) call pair_sample(sim, n)
+    if (sim%pair_on) then
+      call timer_start(PART_PARTICLES)
+      call pair_sample(sim, n)
+      call timer_stop(PART_PARTICLES)
+    end if
   end subroutine simulation_step
 
   !> One step without particles (E1-E5): exchange the crossing populations while the rows that
@@ -230,6 +235,7 @@ contains
   subroutine fluid_step(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
+    call timer_start(PART_FLOW)
     call halo_start(sim%dom, sim%f)
     call fill_local_ghosts(sim%bc, sim%dom, sim%f)
     call sweep_part(sim, 1)
@@ -237,6 +243,7 @@ contains
     call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
     call sweep_part(sim, 2)
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+    call timer_stop(PART_FLOW)
   end subroutine fluid_step
 
   !> Stream and collide the rows that do not read the halo rows (part 1, while the halo
@@ -297,27 +304,47 @@ contains
       call fluid_interior_sweep(sim)
     else
       associate (nyl => sim%dom%nyl)
+        call timer_start(PART_FLOW)
         call halo_start(sim%dom, sim%f)
         call fill_local_ghosts(sim%bc, sim%dom, sim%f)
+        call timer_stop(PART_FLOW)
+        call timer_start(PART_LINKS)
         call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
+        call timer_stop(PART_LINKS)
+        call timer_start(PART_FLOW)
         call sweep_part(sim, 1)
         call halo_finish(sim%dom, sim%f)
         call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+        call timer_stop(PART_FLOW)
+        call timer_start(PART_LINKS)
         call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
         call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
+        call timer_stop(PART_LINKS)
+        call timer_start(PART_FLOW)
         call sweep_part(sim, 2)
+        call timer_stop(PART_FLOW)
       end associate
     end if
+    call timer_start(PART_FLOW)
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
+    call timer_stop(PART_FLOW)
+    call timer_start(PART_LINKS)
     if (.not. sim%parts%fluid_interior) call particles_interior(sim%parts, sim%dom, sim%f_next)
+    call timer_stop(PART_LINKS)
+    call timer_start(PART_PARTICLES)
     ! fixed particles only: every rank sums the forces, so that no state is sent back
     call particles_reduce_forces(sim%parts, sim%dom,.not. sim%particles_move)
     ! the owners move their particles (fixed ones stay) and send every rank the new state
     call particles_move(sim%parts, sim%dom, sim%f_next, ends_at_rest(sim), sim%particles_move)
+    call timer_stop(PART_PARTICLES)
+    call timer_start(PART_WINDOW)
     if (sim%window_on) call follow_particles(sim, n)
+    call timer_stop(PART_WINDOW)
+    call timer_start(PART_LINKS)
     if (sim%particles_move) call check_particle_places(sim, n, failure)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
     if (sim%particles_move .and. len(failure) == 0) call particles_find_links(sim%parts, sim%dom)
+    call timer_stop(PART_LINKS)
   end subroutine particle_step
 
   !> The flow part of a step with interior fluid (coupling.interior = 'fluid', docs/model.md §3),
@@ -328,15 +355,21 @@ contains
   !! between, so the in-place sweep sees what the two-lattice one sees.
   subroutine fluid_interior_sweep(sim)
     type(simulation_t), intent(inout) :: sim
+    call timer_start(PART_FLOW)
     call halo_start(sim%dom, sim%f)
     call fill_local_ghosts(sim%bc, sim%dom, sim%f)
     call halo_finish(sim%dom, sim%f)
     call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
+    call timer_stop(PART_FLOW)
+    call timer_start(PART_LINKS)
     call particles_inner_save(sim%parts, sim%dom, sim%f)
     call particles_bounce(sim%parts, sim%dom, sim%f, 1, sim%dom%nyl)
     call particles_inner_write(sim%parts, sim%f)
+    call timer_stop(PART_LINKS)
+    call timer_start(PART_FLOW)
     call sweep_part(sim, 1)
     call sweep_part(sim, 2)
+    call timer_stop(PART_FLOW)
   end subroutine fluid_interior_sweep
 
   !> The ends a disk collides with by E11 (docs/model.md §4), lower and upper: the ends at

@@ -20,7 +20,7 @@ module dkt_store
   implicit none
   private
   public :: lattice_t, lattice_allocate, lattice_free, lattice_get, lattice_set, &
-            lattice_get_node, lattice_set_node, lattice_swap, lattice_allocated, &
+            lattice_get_row, lattice_get_node, lattice_set_node, lattice_swap, lattice_allocated, &
             lattice_bytes, lattice_precision, lattice_precision_name, PRECISION_NAMES
 
   type :: lattice_t
@@ -174,6 +174,25 @@ contains
       fn = lat%d(x, j, :)
     end if
   end function lattice_get_node
+
+  !> The nine populations of columns 1..nx of row j, in 8 bytes and unshifted, as
+  !! lattice_get_node gives them node by node (fr(x, i) is population i of column x): the row
+  !! form, whose loops vectorise along x.
+  pure subroutine lattice_get_row(lat, j, nx, fr)
+    type(lattice_t), intent(in) :: lat
+    integer, intent(in) :: j, nx
+    real(wp), intent(out) :: fr(:, 0:)
+    integer :: i
+    do i = 0, 8
+      if (.not. lat%single) then
+        fr(1:nx, i) = lat%d(1:nx, j, i)
+      else if (lat%shifted) then
+        fr(1:nx, i) = real(lat%s(1:nx, j, i), wp) + w(i)
+      else
+        fr(1:nx, i) = real(lat%s(1:nx, j, i), wp)
+      end if
+    end do
+  end subroutine lattice_get_row
 
   !> Store the nine populations at node (x, j).
   subroutine lattice_set_node(lat, x, j, fn)

@@ -9,6 +9,11 @@ dkt_add_pytest(NAME faults_checkpoint FILE tests/test_faults_chk.py LABELS mpi r
 # fails by the timeout).
 dkt_add_fortran_test(NAME test_window_follow SOURCES dkt_check.f90 test_window_follow.f90
   LABELS unit NO_MPIEXEC TIMEOUT 30)
+# The flow guard's row pass gives the node-by-node scan's largest Mach number bit for bit, and
+# hands every slab it does not clear (a NaN, an infinity, a Mach number above the limit, an
+# overflowing density) to the scan for the verdict and the message.
+dkt_add_fortran_test(NAME test_guard SOURCES dkt_check.f90 test_guard.f90
+  LABELS unit NO_MPIEXEC TIMEOUT 30)
 # A restart continues the physics it started with (tests/test_faults_physics.py): a changed
 # gravity, collision model, bounce-back, viscosity or particle density is refused with the key
 # and both values and nothing touched, allowed and recorded through run.restart_changes; run

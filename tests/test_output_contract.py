@@ -260,6 +260,40 @@ def test_log_copy_has_the_performance_line_of_stdout(result) -> None:
     assert log.splitlines() == stdout.splitlines()
 
 
+PART_NAMES = ["flow", "links", "particles", "window", "guards", "output", "checkpoints", "other"]
+PARTS_LINE = re.compile(r"^time per part: (.*) \(mean over (\d+) ranks?\)$")
+
+
+def time_per_part(stdout: str) -> dict[str, float]:
+    """The `time per part:` line (the line after `performance:`) as {part: percent}."""
+    lines = stdout.splitlines()
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("performance:"))
+    match = PARTS_LINE.match(lines[at + 1])
+    assert match, f"no time-per-part line after the performance line: {lines[at + 1]!r}"
+    assert int(match.group(2)) == RANKS
+    parts = {}
+    for item in match.group(1).split(", "):
+        name, value, unit = item.rsplit(" ", 2)
+        assert unit == "%", item
+        parts[name] = float(value)
+    return parts
+
+
+def test_time_per_part_line_splits_the_loop_without_overlap(result) -> None:
+    """After the performance line, the time per part: every part named once, in order, each a
+    share of the loop's wall time. The parts are timed disjointly, so their shares and `other`
+    add up to 100 % (within the rounding of eight one-decimal figures); a part timed inside
+    another would count twice and push the sum above. This scene has no particles and no
+    window: no time goes to them. The flow sweep is timed, so its share is not zero."""
+    _, stdout = result
+    parts = time_per_part(stdout)
+    assert list(parts) == PART_NAMES
+    assert all(0.0 <= v <= 100.0 for v in parts.values()), parts
+    assert abs(sum(parts.values()) - 100.0) <= 0.45, parts
+    assert parts["links"] == parts["particles"] == parts["window"] == 0.0, parts
+    assert parts["flow"] > 0.0, parts
+
+
 def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -> None:
     """With output.dir = '' everything goes to runs/<namelist basename>/ below the working
     directory: <name>.h5, <name>.xdmf, <name>.log, the marker <name>.finished (for batch
@@ -296,6 +330,16 @@ def pair_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
         )
         for level in (0, 6)
     }
+
+
+def test_time_per_part_of_a_pair_run_counts_the_particles(pair_runs) -> None:
+    """In a run with moving particles the force sums and the motion (and the pair's sample)
+    are timed as `particles`: a share above zero, and still a sum of 100 %."""
+    log = (pair_runs[0].parent / "case1.log").read_text()
+    parts = time_per_part(log)
+    assert list(parts) == PART_NAMES
+    assert abs(sum(parts.values()) - 100.0) <= 0.45, parts
+    assert parts["particles"] > 0.0 and parts["flow"] > 0.0, parts
 
 
 def datasets(f: h5py.File) -> list[str]:

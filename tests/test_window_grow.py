@@ -17,7 +17,9 @@ Proves:
 - each snapshot's XDMF grid has that snapshot's rows, the Python reader reads both sizes, and
   ParaView (when pvpython is installed) sees both;
 - a window grown to its limit still ends the run with window_escape and a warning naming
-  window.max_above.
+  window.max_above;
+- the start-up summary states the memory of the largest window, the figure the memory check
+  takes.
 
 Each fails on the code before window.max_above existed (the key is refused), and the bitwise
 ones on a growth that leaves rows on the wrong rank, sizes a message from one side only or
@@ -257,3 +259,32 @@ def test_a_window_grown_to_its_limit_still_ends_the_run_with_window_escape(
     assert set(rows.values()) == {NY0, 100}, rows
     with h5py.File(h5file, "r") as h5:
         assert GROWS_AT < h5["particles/t"].shape[0] - 1 < STEPS
+
+
+GROWN_MIB = re.compile(r"\(up to ([0-9.]+) MiB in all once the window has grown to (\d+) rows\)")
+
+
+@pytest.mark.parametrize("ranks", [1, 3])
+def test_the_summary_states_the_memory_of_the_largest_window_the_check_takes(
+    tmp_path: Path, ranks: int
+) -> None:
+    """The start-up summary states what rank 0 holds once the window has grown to its limit
+    (8 D_1 above: 12 x 12.0833 = 145 rows), and that figure is the one the memory check
+    takes: run.memory_limit just above the ranks' sum of it passes --check, just below it
+    stops with the memory message. On 3 ranks 145 rows split 49/48/48, so rank 0's slab is the
+    largest. A summary that printed the window's first size, or a check that took it, fails."""
+    proc = run(NML, ranks, SETS, tmp_path / "a", extra=["--check"], timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    m = GROWN_MIB.search(proc.stdout)
+    assert m, proc.stdout
+    assert int(m.group(2)) == 145
+    grown = float(m.group(1))
+    first = re.search(r"lattices ([0-9.]+) MiB", proc.stdout)
+    assert first and float(first.group(1)) < grown
+    for margin, passes in ((0.02, True), (-0.02, False)):
+        limit = (ranks * grown + margin) / 1024.0
+        proc = run(NML, ranks, [*SETS, f"run.memory_limit={limit:.9f}"], tmp_path / "b",
+                   extra=["--check"], timeout=120, check=False)
+        assert (proc.returncode == 0) == passes, (margin, proc.stdout + proc.stderr)
+        if not passes:
+            assert "145 cells" in proc.stderr and "run.memory_limit" in proc.stderr, proc.stderr

@@ -10,7 +10,8 @@ quote:
         the paper's Case 1 in the moving window (500 x 1250, 37 500 steps)
 
 Each run is timed as a whole process (launcher start-up, input, output and finalisation included),
-with its CPU time (all ranks) and the largest resident set of one process. Every repeat runs all
+with its CPU time (all ranks) and the largest resident set of one process; where the program
+prints its `time per part:` line, the median share of each part follows the table. Every repeat runs all
 cases, layouts and executables once, one after the other, so that a slower spell of a shared
 machine hits all alike; the ratios are taken within each repeat and then medianed: to the same
 executable's double/two_lattice run, and with --baseline-exe to that executable's
@@ -38,6 +39,7 @@ import benchlib
 from benchlib import ROOT
 
 PERFORMANCE = re.compile(r"performance:\s*([0-9.]+(?:[eE][-+]?[0-9]+)?)\s*MLUPS")
+PARTS = re.compile(r"^time per part: (.*) \(mean over", re.MULTILINE)
 CASES = [
     "input/case0_box.nml --set lbm.cells_per_diameter=20 --set run.t_end=6",
     "input/case1.nml",
@@ -82,6 +84,36 @@ def case_arguments(case: str, overrides: list[str]) -> tuple[str, list[str]]:
         sys.exit(f"bench_whole: scene {scene} not found")
     options = words[1:] + [part for o in overrides for part in ("--set", o)]
     return case, [str(scene), *options]
+
+
+def part_shares(output: str) -> dict[str, float]:
+    """The `time per part:` line of a run's output as {part: percent of the loop}, or {}."""
+    found = PARTS.findall(output)
+    if not found:
+        return {}
+    shares = {}
+    for item in found[-1].split(", "):
+        name, value, _ = item.rsplit(" ", 2)
+        shares[name] = float(value)
+    return shares
+
+
+def print_parts(runs: dict[tuple, list[benchlib.Finished]]) -> None:
+    """The median share of the loop's wall time of each part, per case, executable and
+    layout (runs whose program prints no such line are left out)."""
+    rows = []
+    for (case, ranks, which, layout), results in runs.items():
+        shares = [s for r in results if (s := part_shares(r.output))]
+        if shares:
+            names = list(shares[0])
+            medians = [benchlib.spread([s[n] for s in shares])[0] for n in names]
+            rows.append((case, ranks, which, layout, names, medians))
+    if not rows:
+        return
+    print("\ntime per part, % of the time loop (median of the runs; the program's own line)")
+    for case, ranks, which, layout, names, medians in rows:
+        parts = ", ".join(f"{n} {m:.1f}" for n, m in zip(names, medians, strict=True))
+        print(f"  {which} {layout} {ranks} rank(s) {case}: {parts}")
 
 
 def main() -> int:
@@ -185,6 +217,7 @@ def main() -> int:
                     "ratios": ratios,
                 }
             )
+    print_parts(runs)
     print(
         "\n(wall: median of the runs; ratios of wall times, per repeat then medianed: to the same "
         "executable's double/two_lattice run, and to the baseline executable's; peak: the largest "
