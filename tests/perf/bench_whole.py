@@ -11,10 +11,10 @@ quote:
 
 Each run is timed as a whole process (launcher start-up, input, output and finalisation included),
 with its CPU time (all ranks) and the largest resident set of one process; where the program
-prints its `time per part:` line, the median share of each part follows the table. Every repeat runs all
-cases, layouts and executables once, one after the other, so that a slower spell of a shared
-machine hits all alike; the ratios are taken within each repeat and then medianed: to the same
-executable's double/two_lattice run, and with --baseline-exe to that executable's
+prints its `time per part:` line, the median share of each part follows the table. Every repeat
+runs all cases, layouts and executables once, one after the other, so that a slower spell of a
+shared machine hits all alike; the ratios are taken within each repeat and then medianed: to the
+same executable's double/two_lattice run, and with --baseline-exe to that executable's
 double/two_lattice run (an older build that has no storage keys runs without them). Layouts an
 executable refuses (asked with --check) are skipped with its message. Standard library only.
 
