@@ -532,6 +532,9 @@ def out_of_line(pair) -> tuple[bool, str]:
                                     f"the channel")
 
 
+UNSETTLED = "unsettled"  # a map point not settled within the limits (--keep-going)
+
+
 STOPPED_CLEANLY = ("signal", "wall_limit")  # stop reasons after which a checkpoint is written
 
 
@@ -657,6 +660,9 @@ class Bisector:
         self.runs: dict[str, PlannedRun] = {}
         self.rows: list[dict[str, str]] = []
         self.launches = 0
+        # a point not settled within the limits: SweepError (a bisection), or with
+        # `keep_going` (a map's --keep-going) its Verdict with pattern UNSETTLED, and on
+        self.keep_going = False
         # the values run before in this directory (an earlier --tol, --lo or --hi): runs.csv
         # keeps them, and those already settled narrow the bracket before any new point runs
         self.earlier: set[float] = set()
@@ -797,31 +803,45 @@ class Bisector:
                 elif v.status == "window_escape" and c.grow > 0:
                     # the window grew as far as it may: a larger one is a larger limit, which
                     # the user chooses (a run again would only repeat this one)
-                    raise SweepError(
+                    self._give_up(done, target, value, v, r, (
                         f"run {r.dir} ({name}, {at}): {v.why}, in a window grown to its limit "
                         f"window.max_above = {c.grow:g} D_1; its pattern ({v.pattern} so far) "
                         f"is not final: raise --max-above (or window.max_above), or bracket "
-                        f"away from this value")
+                        f"away from this value"))
                 elif v.status == "window_escape":
                     if 2 * above > c.max_above * (1 + 1e-12):
-                        raise SweepError(
+                        self._give_up(done, target, value, v, r, (
                             f"run {r.dir} ({name}, {at}): {v.why}; its pattern ({v.pattern} so "
                             f"far) is not final, and doubling window.above would pass "
                             f"--max-above {c.max_above:g} D_1: raise --max-above, or bracket "
-                            f"away from this value")
+                            f"away from this value"))
+                        continue
                     print(f"  {name}: not settled at {at}: {v.why}; running it again with "
                           f"window.above = {2 * above:g} D_1", flush=True)
                     target[value] = (t_end, 2 * above)
                 elif 2 * t_end > c.max_t_end * (1 + 1e-12):
-                    raise SweepError(
+                    self._give_up(done, target, value, v, r, (
                         f"run {r.dir} ({name}): the pattern is not settled at {at} "
                         f"({v.why}) and doubling t_end would pass --max-t-end "
-                        f"{c.max_t_end:g} s")
+                        f"{c.max_t_end:g} s"))
                 else:
                     print(f"  {name}: not settled at {at} ({v.why}); running it to "
                           f"{2 * t_end:g} s", flush=True)
                     target[value] = (2 * t_end, above)
         return done
+
+    def _give_up(self, done: dict, target: dict, value, v: Verdict, r: PlannedRun,
+                 message: str) -> None:
+        """A point not settled within the limits (`message` says which): SweepError, or with
+        keep_going its Verdict, pattern UNSETTLED and `why` the message, is the point's answer
+        in `done` (its run's own pattern stays in run_pattern)."""
+        if not self.keep_going:
+            raise SweepError(message)
+        print(f"  {self.name(value)}: unsettled: {message}; the map goes on around it",
+              flush=True)
+        v.pattern, v.settled, v.why = UNSETTLED, False, message
+        done[value] = (v, r)
+        del target[value]
 
     def search(self) -> tuple[tuple[float, str], tuple[float, str]]:
         """The bracket (value, pattern) at each end, hi - lo <= tol. With jobs N, each step
