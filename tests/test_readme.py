@@ -50,6 +50,7 @@ LINKED_PAGES = [
     "docs/running.md",
     "docs/accuracy.md",
     "docs/performance.md",
+    "docs/regime.md",
 ]
 # dkt-* commands that run as written on the test's small run; the others (they would start
 # runs or submit jobs) show --help with every option the README gives them.

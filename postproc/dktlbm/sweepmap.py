@@ -13,6 +13,9 @@ t_end doubled up to --max-t-end while 'once' or 'never' is not settled, window.a
 up to --max-above after a window escape, --kiss), and each step runs the new points of all
 edges together: up to --jobs at a time here (each edge gets --jobs / edges points a step, at
 least one), or one Slurm job array a step.
+With --keep-going a point not settled within those limits is
+'unsettled' instead of an error: edges from an unsettled grid point are not bisected, and an
+edge whose bracket holds one stops there, its border point the bracket as it is.
 
 Every run is DIR/<id> (`g<G>_h<H>`, `_t<T>` for a longer run, `_a<A>` for a taller window)
 and a row of DIR/runs.csv, as plan and bisect write them, so `collect` reads a map as a
@@ -25,9 +28,10 @@ of these for the same DIR is refused.
 Written to DIR: map.csv (a row per run: x, y, role grid or edge, pattern, episodes,
 first_kiss_t, t_end, end_t, status, settled, wall_s, dir, above), borders.csv (a row per
 border point: border id and its two patterns, piece and order along the polyline, the
-edge's key, the midpoint x, y, the bracket x_lo, x_hi, y_lo, y_hi and the patterns at its
-ends), map.png (the plane coloured by the grid's patterns, every settled point, the border
-polylines, and the lines --cut x=V or y=V, e.g. the paper's 1-D cuts).
+edge's key, the midpoint x, y, the bracket x_lo, x_hi, y_lo, y_hi, the patterns at its
+ends and the unsettled points inside it), map.png (the plane coloured by the grid's
+patterns, every settled point, the border polylines, and the lines --cut x=V or y=V, e.g. the
+paper's 1-D cuts).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from pathlib import Path
 from .sweep import (
     RUNS_CSV,
     STYLE,
+    UNSETTLED,
     Bisector,
     PlannedRun,
     SweepError,
@@ -64,7 +69,7 @@ MAP_STATE = "map.json"
 MAP_COLUMNS = ("x", "y", "role", "pattern", "episodes", "first_kiss_t", "t_end", "end_t",
                "status", "settled", "wall_s", "dir", "above")
 BORDER_COLUMNS = ("border", "patterns", "piece", "order", "along", "x", "y", "x_lo", "x_hi",
-                  "y_lo", "y_hi", "pattern_lo", "pattern_hi")
+                  "y_lo", "y_hi", "pattern_lo", "pattern_hi", "unsettled")
 KEYS = ("gamma", "dh")
 LABELS = {"gamma": r"$\gamma = D_1/D_2$", "dh": "$D_h/D_1$"}
 
@@ -106,6 +111,7 @@ class MapSettings:
     kiss: bool = False
     cuts: list[tuple[str, float]] = field(default_factory=list)  # ('x' or 'y', value) to draw
     grow: float = 0.0  # D_1, the runs' window.max_above: their windows grow up to it; 0 = never
+    keep_going: bool = False  # a point not settled within the limits is UNSETTLED, not an error
 
     def identity(self) -> dict[str, object]:
         """What a rerun in the same directory must repeat to reuse its runs: the base scene,
@@ -123,7 +129,13 @@ class MapBisector(Bisector):
 
     def __init__(self, cfg: MapSettings, jobs: int, launch) -> None:
         self.grid: set[Point] = set()
+        self.unsettled: set[Point] = set()  # points not settled within the limits
         super().__init__(cfg, jobs, launch)
+        self.keep_going = cfg.keep_going
+
+    def _give_up(self, done, target, value, v, r, message) -> None:
+        super()._give_up(done, target, value, v, r, message)
+        self.unsettled.add(value)
 
     def coords(self, value: Point) -> dict[str, float]:
         return {self.cfg.x.key: value[0], self.cfg.y.key: value[1]}
@@ -175,6 +187,7 @@ class Border:
     """A border point: the narrowed bracket of an edge, and where it lies on its polyline."""
 
     edge: Edge
+    unsettled: list[float] = field(default_factory=list)  # unsettled points in the bracket
     patterns: str = ""  # the two patterns, sorted, joined by '|'
     border: int = 0  # one id per pair of patterns
     piece: int = 0  # the polyline of that border the point is on
@@ -185,14 +198,19 @@ class Border:
 
 
 def grid_edges(xs: list[float], ys: list[float], pattern: dict[Point, str]) -> list[Edge]:
-    """Every edge between neighbouring grid points with different patterns."""
+    """Every edge between neighbouring grid points with different settled patterns (an edge
+    with an UNSETTLED end has no known change to bisect)."""
     edges = []
+
+    def differ(a: Point, b: Point) -> bool:
+        return UNSETTLED not in (pattern[a], pattern[b]) and pattern[a] != pattern[b]
+
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):
-            if i + 1 < len(xs) and pattern[(x, y)] != pattern[(xs[i + 1], y)]:
+            if i + 1 < len(xs) and differ((x, y), (xs[i + 1], y)):
                 far = (xs[i + 1], pattern[(xs[i + 1], y)])
                 edges.append(Edge(0, y, (i, j), (x, pattern[(x, y)]), far, far))
-            if j + 1 < len(ys) and pattern[(x, y)] != pattern[(x, ys[j + 1])]:
+            if j + 1 < len(ys) and differ((x, y), (x, ys[j + 1])):
                 far = (ys[j + 1], pattern[(x, ys[j + 1])])
                 edges.append(Edge(1, x, (i, j), (y, pattern[(x, y)]), far, far))
     return edges
@@ -240,8 +258,11 @@ class MapSearch:
         going = []
         for e in edges:
             mine = {t: got[e.point(t)] for t in inside[id(e)] if e.point(t) in got}
-            e.lo, e.hi = _first_change(e.lo, e.hi, mine)
-            going += self._narrowed(e)
+            stuck = sorted(t for t, (v, _) in mine.items() if v.pattern == UNSETTLED)
+            e.lo, e.hi = _first_change(e.lo, e.hi, {t: a for t, a in mine.items()
+                                                    if t not in stuck})
+            stuck = [t for t in stuck if e.lo[0] < t < e.hi[0]]
+            going += self._narrowed(e, stuck)
         return going
 
     def _earlier(self, e: Edge) -> list[float]:
@@ -262,11 +283,15 @@ class MapSearch:
                              f"digits resolve")
         return ts
 
-    def _narrowed(self, e: Edge) -> list[Edge]:
+    def _narrowed(self, e: Edge, stuck: list[float] | None = None) -> list[Edge]:
         """e if it is still wider than its tolerance; else its border point is kept, and the
-        rest of its line to the grid point `end` goes on when the pattern changes there too."""
-        if e.width() <= self.tol(e) * (1 + 1e-9):
-            self.borders.append(Border(Edge(e.along, e.fixed, e.index, e.lo, e.hi, e.end)))
+        rest of its line to the grid point `end` goes on when the pattern changes there too.
+        With unsettled points inside the bracket (`stuck`, --keep-going) the edge stops
+        there: nothing tells on which side of them the pattern changes, so its border point
+        is the bracket as it is, wider than the tolerance, with those points named."""
+        if stuck or e.width() <= self.tol(e) * (1 + 1e-9):
+            self.borders.append(Border(Edge(e.along, e.fixed, e.index, e.lo, e.hi, e.end),
+                                       list(stuck or [])))
             if e.hi[1] != e.end[1]:
                 return [Edge(e.along, e.fixed, e.index, e.hi, e.end, e.end)]
             return []
@@ -324,7 +349,7 @@ def border_row(b: Border) -> dict[str, str]:
             "order": str(b.order), "along": "x" if e.along == 0 else "y",
             "x": f"{x:.8g}", "y": f"{y:.8g}", "x_lo": f"{lo[0]:.8g}", "x_hi": f"{hi[0]:.8g}",
             "y_lo": f"{lo[1]:.8g}", "y_hi": f"{hi[1]:.8g}", "pattern_lo": e.lo[1],
-            "pattern_hi": e.hi[1]}
+            "pattern_hi": e.hi[1], "unsettled": " ".join(f"{t:.8g}" for t in b.unsettled)}
 
 
 def write_borders(borders: list[Border], out: Path) -> Path:
@@ -346,7 +371,7 @@ def draw_map(cfg: MapSettings, grid: dict[Point, str], points: dict[Point, str],
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
 
-    style = {**STYLE, "kisses": ("o", "tab:red")}
+    style = {**STYLE, "kisses": ("o", "tab:red"), UNSETTLED: ("x", "0.45")}
     xs, ys = cfg.x.grid(), cfg.y.grid()
     names = sorted({p for p in grid.values()})
     code = np.array([[names.index(grid[(x, y)]) for x in xs] for y in ys], dtype=float)
@@ -397,7 +422,8 @@ def _draw_borders(ax, borders: list[Border]) -> None:
     for b in borders:
         e = b.edge
         (x0, y0), (x1, y1) = e.point(e.lo[0]), e.point(e.hi[0])
-        ax.plot([x0, x1], [y0, y1], color="black", linewidth=3, zorder=4)
+        ax.plot([x0, x1], [y0, y1], color="0.55" if b.unsettled else "black", linewidth=3,
+                zorder=4)
     for number in sorted({b.border for b in borders}):
         mine = [b for b in borders if b.border == number]
         for piece in sorted({b.piece for b in mine}):
@@ -430,15 +456,18 @@ def trace_map(cfg: MapSettings, jobs: int, launch,
         counts[b.patterns] = counts.get(b.patterns, 0) + 1
     each = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items())) or "no change of pattern"
     n, files = len(m.rows), len({row["dir"] for row in m.rows})
+    loose = len(m.unsettled)
     return m, borders, (f"map of {cfg.x.key} x {cfg.y.key}: {len(m.grid)} grid points, "
                         f"{len(borders)} border points ({each}), {n} verdicts from {files} "
-                        f"run{'s' if files != 1 else ''}")
+                        f"run{'s' if files != 1 else ''}"
+                        + (f", {loose} unsettled point{'s' if loose != 1 else ''}"
+                           if cfg.keep_going else ""))
 
 
 def map_points(m: MapBisector) -> tuple[dict[Point, str], dict[Point, str]]:
     """The grid's patterns and every settled point's, from map.csv's rows (the last settled
-    row of a point is its pattern; with --kiss its class)."""
-    points: dict[Point, str] = {}
+    row of a point is its pattern; with --kiss its class), and the unsettled points."""
+    points: dict[Point, str] = {p: UNSETTLED for p in m.unsettled}
     for row in m.rows:
         if row["settled"] == "yes":
             p = (float(row["x"]), float(row["y"]))
@@ -494,6 +523,9 @@ def add_parser(sub, with_out) -> None:
                    help="draw the line x = V or y = V on map.png (repeatable), e.g. a 1-D "
                    "search's line")
     q.add_argument("--pdf", action="store_true", help="also write DIR/map.pdf")
+    q.add_argument("--keep-going", action="store_true",
+                   help="a point not settled within --max-t-end and --max-above is marked "
+                   "unsettled and the map goes on around it (default: the map stops there)")
     search_options(q, "runs at the same time (default 1); each step gives every edge "
                    "N / edges points, at least one")
     with_out(q)
@@ -516,7 +548,8 @@ def map_command(args: argparse.Namespace) -> int:
     limits = settling_limits(args, base)
     sets, grow = growth(args, base, limits[3])
     cfg = MapSettings(base, axes[0], axes[1], sets, args.out.resolve(),
-                      args.exe or default_exe(), *limits, args.kiss, list(args.cut), grow)
+                      args.exe or default_exe(), *limits, args.kiss, list(args.cut), grow,
+                      args.keep_going)
     _, _, summary = trace_map(cfg, args.jobs, search_launcher(args, cfg.out), args.pdf)
     print(f"wrote {', '.join(str(cfg.out / f) for f in (MAP_CSV, BORDERS_CSV, MAP_PNG))}, "
           f"{cfg.out / RUNS_CSV}")

@@ -652,3 +652,35 @@ def test_kiss_mode_reuses_a_run_stopped_after_its_kiss(
     for value in kissing:
         r = regime[f"{value:g}"]
         assert (r["pattern"], r["status"], r["settled"]) == ("once", "signal", "no"), r
+
+
+def _pair_state(t: list[float], gap: list[float], v_upper: float, v_lower: float):
+    """A stand-in for read.Pair at its last sample: times t (s), gaps D_r (cm), and the
+    particles' vertical velocities there (cm/s; particle 0 is the lower one)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    n = len(t)
+    series = {"y": np.tile([10.0, 12.0], (n, 1)), "v": np.tile([v_lower, v_upper], (n, 1))}
+    return SimpleNamespace(run=SimpleNamespace(series=series), t=np.asarray(t),
+                           dr=np.asarray(gap), d1=0.2)
+
+
+def test_closing_in_sees_a_pair_that_has_turned_back() -> None:
+    """The closing-in rule on the shape Case-1 at gamma = 1.1875, 16 per D, showed at
+    t* = 100: the gap peaked at 90 % of the run (14.23 D_1) and is 0.3 % below it at the end,
+    still above its value a quarter of the run before, with the upper disk 0.5 % faster. It
+    kissed again at t* = 220, so the pair must count as closing in (a rule that asked for the
+    gap to be below its value a quarter of the run before did not). A pair separating with
+    the upper disk slower is not closing in; one whose gap shrinks over the last tenth while
+    the upper disk is already slower is."""
+    t = [0.1 * k for k in range(101)]
+    turned = [0.2 * (13.2 + 1.03 * min(k, 90) / 90 - 0.0005 * max(k - 90, 0)) for k in range(101)]
+    assert turned[-1] > turned[75] and turned[-1] < max(turned)
+    closing, state = sweep.closing_in(_pair_state(t, turned, -1.180, -1.174))
+    assert closing and "shrinking" in state, state
+    apart = [0.2 * (2 + 0.12 * k) for k in range(101)]
+    assert not sweep.closing_in(_pair_state(t, apart, -0.9, -1.17))[0]
+    slowing = apart[:90] + [apart[89] - 0.001 * k for k in range(1, 12)]
+    assert sweep.closing_in(_pair_state(t, slowing, -1.16, -1.17))[0]

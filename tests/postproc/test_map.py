@@ -271,6 +271,61 @@ def test_an_edge_across_three_patterns_gives_both_borders(tmp_path: Path, base: 
                      "6": ["once|repeated", "never|once"]}
 
 
+def test_keep_going_marks_unsettled_points_and_maps_around_them(tmp_path: Path, base: Path,
+                                                               log: Path) -> None:
+    """With --max-t-end equal to the first t_end, the points just below the repeated-to-once
+    border ('once' and closing in at 4 s) cannot settle. Without --keep-going the map stops
+    there (SweepError naming --max-t-end). With it (gamma from 1.35, so that the grid point
+    (1.35, 1.5) is such a point) the map completes: exactly the points in that band are
+    unsettled (map.csv: settled 'no'), no edge from the unsettled grid point is bisected,
+    an edge that meets one stops with its bracket as it is, naming the point, which lies in
+    the bracket, whose ends still hold the true border; every other border point is within
+    tolerance; the summary counts the unsettled points; the same map again runs nothing."""
+    area = dict(x=(1.35, 3.0))
+    stop = settings(base, tmp_path / "stop", **area)
+    stop.max_t_end = T_END
+    with pytest.raises(SweepError, match="--max-t-end"):
+        sweepmap.trace_map(stop, 2, FakeLaunch())
+
+    out = tmp_path / "m"
+    cfg = settings(base, out, **area)
+    cfg.max_t_end, cfg.keep_going = T_END, True
+    m, _, summary = sweepmap.trace_map(cfg, 2, FakeLaunch())
+    table = rows(out / "map.csv")
+    points = {(float(r["x"]), float(r["y"])) for r in table}
+    assert m.unsettled == {p for p in points if fake.late(*p)}
+    assert (1.35, 1.5) in m.unsettled
+    for r in table:
+        if (float(r["x"]), float(r["y"])) in m.unsettled:
+            assert r["settled"] == "no", r
+    xs, ys = cfg.x.grid(), cfg.y.grid()
+    off_grid = points - {(x, y) for x in xs for y in ys}
+    assert not [p for p in off_grid if (p[0] == 1.35 and p[1] < ys[1])
+                or (p[1] == 1.5 and p[0] < xs[1])], "an edge from an unsettled point ran"
+    got = rows(out / "borders.csv")
+    stuck = [b for b in got if b["unsettled"]]
+    assert stuck, "the test must meet an unsettled point inside a bracket"
+    for b in got:
+        if not b["unsettled"]:
+            check_bracket(b)
+            continue
+        along = b["along"]
+        lo, hi = float(b[f"{along}_lo"]), float(b[f"{along}_hi"])
+        fixed = float(b["y_lo"] if along == "x" else b["x_lo"])
+        for t in map(float, b["unsettled"].split()):
+            assert lo < t < hi and fake.late(*((t, fixed) if along == "x" else (fixed, t))), b
+        assert fake.pattern(float(b["x_lo"]), float(b["y_lo"])) == b["pattern_lo"]
+        assert fake.pattern(float(b["x_hi"]), float(b["y_hi"])) == b["pattern_hi"]
+        assert b["pattern_lo"] != b["pattern_hi"]
+    n = len(m.unsettled)
+    assert summary.endswith(f", {n} unsettled point{'s' if n != 1 else ''}")
+    before = runs_in(log)
+    again = FakeLaunch()
+    _, _, summary2 = sweepmap.trace_map(cfg, 2, again)
+    assert again.calls == [] and runs_in(log) == before and summary2 == summary
+    assert rows(out / "borders.csv") == got
+
+
 def stand_in(path: Path, text: str) -> Path:
     path.write_text(text)
     path.chmod(path.stat().st_mode | stat.S_IEXEC)
