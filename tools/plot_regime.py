@@ -38,8 +38,9 @@ CUTS25 = {
               ("dh", 2.0, 2.46875, 2.5)],
 }
 # 16-per-D bracket ends run again at 25 per D (docs/regime.md): (fixed dh, gamma lo, gamma hi)
-CHECKS25 = {"case1": [(4.5, 1.1875, 1.25)],
-            "case2": [(3.0, 1.75, 1.875), (4.5, 1.5, 1.625), (1.5, 1.25, 1.3125)]}
+CHECKS25 = {"case1": [(4.5, 1.1875, 1.25), (1.5, 1.1875, 1.25)],
+            "case2": [(3.0, 1.75, 1.875), (4.5, 1.5, 1.625), (1.5, 1.25, 1.3125),
+                      (4.5, 1.25, 1.3125)]}
 
 
 def rows(path: Path) -> list[dict[str, str]]:
