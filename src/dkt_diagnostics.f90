@@ -81,9 +81,9 @@ contains
     real(wp), intent(out) :: mach_max     !! largest |u|/c_s on any rank
     character(len=:), allocatable, intent(out) :: failure
     integer, parameter :: OK = 0, TOO_FAST = 1, NON_FINITE = 2
-    real(wp) :: rho, ux, uy, ma, fn(0:8), u2_max
+    real(wp) :: u2_max
     logical :: finite
-    integer :: x, j, kind, worst, root
+    integer :: kind, worst, root
     character(len=1024) :: msg
 
     if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
@@ -109,17 +109,21 @@ contains
 
     !> Every node in turn: the first non-finite node, else the first above the limit.
     subroutine guard_nodes()
+      real(wp) :: rho, ux, uy, ma, fn(0:8)
+      logical :: node_finite
+      integer :: x, j
+
       mach_max = 0.0_wp
       scan: do j = 1, dom%nyl
         do x = 1, dom%nx
           fn = lattice_get_node(f, x, j)
           ! the moments only of finite populations (an infinity would trap in the checked build)
-          finite = all(ieee_is_finite(fn))
-          if (finite) then
+          node_finite = all(ieee_is_finite(fn))
+          if (node_finite) then
             call node_moments(fn, force, rho, ux, uy)
-            finite = ieee_is_finite(ux) .and. ieee_is_finite(uy)
+            node_finite = ieee_is_finite(ux) .and. ieee_is_finite(uy)
           end if
-          if (.not. finite) then
+          if (.not. node_finite) then
             write (msg, '(a,i0,a,es12.4e3,a,2(i0,a),2(es12.4e3,a),a)') &
               'non-finite value at step ', step, ' (t = ', t, ' s), node (', x, ', ', &
               dom%y0 + j, ') at (', (x - 0.5_wp)*dx, ', ', &

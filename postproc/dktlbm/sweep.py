@@ -658,14 +658,15 @@ class Bisector:
     pair.<key>. A subclass with other points (sweepmap.MapBisector: (x, y) of two keys) gives
     its own coords, name, label and point_of, and settles its points by the same rules."""
 
+    # a point not settled within the limits is a SweepError; a map with --keep-going
+    # (sweepmap.MapBisector) keeps it as a Verdict with pattern UNSETTLED and goes on
+    keep_going = False
+
     def __init__(self, cfg: BisectSettings, jobs: int, launch) -> None:
         self.cfg, self.jobs, self.launch = cfg, max(1, jobs), launch
         self.runs: dict[str, PlannedRun] = {}
         self.rows: list[dict[str, str]] = []
         self.launches = 0
-        # a point not settled within the limits: SweepError (a bisection), or with
-        # `keep_going` (a map's --keep-going) its Verdict with pattern UNSETTLED, and on
-        self.keep_going = False
         # the values run before in this directory (an earlier --tol, --lo or --hi): runs.csv
         # keeps them, and those already settled narrow the bracket before any new point runs
         self.earlier: set[float] = set()

@@ -131,7 +131,10 @@ class MapBisector(Bisector):
         self.grid: set[Point] = set()
         self.unsettled: set[Point] = set()  # points not settled within the limits
         super().__init__(cfg, jobs, launch)
-        self.keep_going = cfg.keep_going
+
+    @property
+    def keep_going(self) -> bool:
+        return self.cfg.keep_going
 
     def _give_up(self, done, target, value, v, r, message) -> None:
         super()._give_up(done, target, value, v, r, message)
