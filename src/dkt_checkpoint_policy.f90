@@ -8,7 +8,8 @@ module dkt_checkpoint_policy
   use dkt_kinds, only: wp
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: config_t
-  use dkt_particles, only: particles_find_links
+  use dkt_particles, only: particle_t, particles_gather, particles_distribute
+  use dkt_particle_links, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             NSTATE, STORAGE_NAMES
   use dkt_signals, only: signals_install, signal_mask, signal_name
@@ -183,6 +184,7 @@ contains
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: err, changes
     character(len=512) :: msg
+    type(particle_t), allocatable :: all(:)
     integer :: k
     call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
                          sim%dom%y0, chk, err)
@@ -198,13 +200,13 @@ contains
     if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
-        chk%np /= merge(sim%parts%n, 0, sim%particles_on)) then
+        chk%np /= merge(sim%parts%ntotal, 0, sim%particles_on)) then
       write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
         ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
         ' cm, dt = ', chk%dt, ' s with ', chk%np, ' particles; the scene '// &
         'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
-        ' with ', merge(sim%parts%n, 0, sim%particles_on), '. Resume with the scene file and '// &
-        '--set options of the run that wrote it'
+        ' with ', merge(sim%parts%ntotal, 0, sim%particles_on), '. Resume with the scene '// &
+        'file and --set options of the run that wrote it'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
     end if
     if (STORAGE_NAMES(chk%precision) /= lattice_precision_name(sim%f)) then
@@ -233,13 +235,18 @@ contains
                 'byte within them would go unnoticed')
     sim%step = chk%step
     sim%win%shift = chk%shift
-    do k = 1, size(chk%particles, 2)
-      associate (p => sim%parts%p(k), v => chk%particles(:, k))
-        p%x = v(1); p%y = v(2); p%u = v(3); p%v = v(4); p%omega = v(5)
-        p%fx = v(6); p%fy = v(7); p%torque = v(8); p%cx = v(9); p%cy = v(10)
-      end associate
-    end do
-    if (sim%particles_on) call particles_find_links(sim%parts, sim%dom)
+    if (sim%particles_on) then
+      ! every particle as the checkpoint holds it, each slab then keeping its own and its ghosts
+      call particles_gather(sim%parts, sim%dom, all)
+      do k = 1, size(chk%particles, 2)
+        associate (p => all(k), v => chk%particles(:, k))
+          p%x = v(1); p%y = v(2); p%u = v(3); p%v = v(4); p%omega = v(5)
+          p%fx = v(6); p%fy = v(7); p%torque = v(8); p%cx = v(9); p%cy = v(10)
+        end associate
+      end do
+      call particles_distribute(sim%parts, sim%dom, all)
+      call particles_find_links(sim%parts, sim%dom)
+    end if
     if (sim%pair_on) then
       sim%pair%n = size(chk%t_start)
       sim%pair%in_episode = chk%in_episode
@@ -272,6 +279,7 @@ contains
     integer, intent(in), optional :: unscheduled !! samples written off the series schedule
     type(checkpoint_t) :: chk
     character(len=:), allocatable :: dir, path, err, before
+    type(particle_t), allocatable :: all(:)
     integer :: k
     logical :: ok
     dir = sim%cfg%output_dir
@@ -284,9 +292,10 @@ contains
     chk%ny = sim%lp%ny
     chk%dx = sim%lp%dx
     chk%dt = sim%lp%dt
-    allocate (chk%particles(NSTATE, merge(sim%parts%n, 0, sim%particles_on)))
+    allocate (chk%particles(NSTATE, merge(sim%parts%ntotal, 0, sim%particles_on)))
+    if (sim%particles_on) call particles_gather(sim%parts, sim%dom, all)
     do k = 1, size(chk%particles, 2)
-      associate (p => sim%parts%p(k))
+      associate (p => all(k))
         chk%particles(:, k) = [p%x, p%y, p%u, p%v, p%omega, p%fx, p%fy, p%torque, p%cx, p%cy]
       end associate
     end do

@@ -185,19 +185,22 @@ contains
   !! its boundary links (E6) and the nodes it uncovers lag behind it, and the force on it is
   !! no longer the fluid's. Every rank holds the same particle states (particles_move sends
   !! them to all), so every rank returns the same failure without communication.
-  function guard_particle_speed(u, v, x, y, limit, step, t, dx, y_offset) result(failure)
+  function guard_particle_speed(u, v, x, y, limit, step, t, dx, y_offset, id) result(failure)
     real(wp), intent(in) :: u(:), v(:)    !! particle velocities, lattice units
     real(wp), intent(in) :: x(:), y(:)    !! particle centres, lattice units
     real(wp), intent(in) :: limit         !! run.particle_speed_limit
     integer, intent(in) :: step           !! time step
     real(wp), intent(in) :: t, dx         !! time (s) and lattice spacing (cm), for the message
     real(wp), intent(in) :: y_offset      !! cm, y of the lattice's lower end (a moving window)
+    integer, intent(in), optional :: id   !! the number of the first particle given (default 1)
     character(len=:), allocatable :: failure
     character(len=512) :: msg
     real(wp) :: speed
-    integer :: k
+    integer :: k, first
     if (.not. allocated(dx_advice)) dx_advice = 'make lbm.dx smaller'
     failure = ''
+    first = 1
+    if (present(id)) first = id
     do k = 1, size(u)
       speed = hypot(u(k), v(k))
       ! a NaN or infinite speed fails as well (tested first: an ordered comparison with NaN
@@ -206,7 +209,7 @@ contains
         if (speed <= limit) cycle
       end if
       write (msg, '(a,i0,a,es12.4e3,a,es12.4e3,a,i0,a,es12.4e3,a,2(es12.4e3,a),a)') &
-        'particle ', k, ' moves ', speed, ' lattice spacings per step, above '// &
+        'particle ', first + k - 1, ' moves ', speed, ' lattice spacings per step, above '// &
         'run.particle_speed_limit = ', limit, ', at step ', step, ' (t = ', t, &
         ' s), centre at (', x(k)*dx, ', ', y_offset + y(k)*dx, ') cm: its boundary links '// &
         'lag behind it. Lower lbm.tau or '//dx_advice//' (both shrink dt/dx), or slow the '// &

@@ -8,7 +8,8 @@ module dkt_output
   use dkt_errors, only: fatal_all, fatal_local, internal_error, EXIT_RUNTIME
   use dkt_mrt, only: collision_describe
   use dkt_fields, only: macroscopic, vorticity
-  use dkt_particles, only: particles_solid_field
+  use dkt_particles, only: particle_t, particles_gather
+  use dkt_particle_links, only: particles_solid_field
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
@@ -430,6 +431,7 @@ contains
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: v(:, :)
+    type(particle_t), allocatable :: all(:)
     real(wp) :: dx, dt, fu, y0
     integer :: k
     dx = sim%lp%dx
@@ -438,14 +440,16 @@ contains
     y0 = 0.0_wp
     ! lattice y counts from the window's lower end; the series holds absolute positions
     if (sim%window_on) y0 = window_offset(sim%win, dx)
-    allocate (v(sim%parts%n, 8))
-    do k = 1, sim%parts%n
-      associate (p => sim%parts%p(k))
+    ! every particle from its owner
+    call particles_gather(sim%parts, sim%dom, all)
+    allocate (v(size(all), 8))
+    do k = 1, size(all)
+      associate (p => all(k))
         v(k, :) = [p%x*dx, p%y*dx + y0, p%u*dx/dt, p%v*dx/dt, p%omega/dt, p%fx*fu, &
                    p%fy*fu, p%torque*fu*dx]
       end associate
     end do
-    if (n == 0) call io_write_attribute(out%io, '/particles', 'count', sim%parts%n)
+    if (n == 0) call io_write_attribute(out%io, '/particles', 'count', size(all))
     out%samples = out%samples + 1
     out%series_step = n
     call io_write_series(out%io, 'particles', ['t'], [n*dt], ['s'])
@@ -469,7 +473,7 @@ contains
     t = n*sim%lp%dt
     rho_f = sim%cfg%fluid%density
     mu = sim%cfg%fluid%viscosity
-    d = 2.0_wp*sim%parts%p(1:2)%r*sim%lp%dx
+    d = 2.0_wp*sim%lp%particles%r(1:2)*sim%lp%dx
     call pair_gaps(v(1, 1), v(1, 2), 0.5_wp*d(1), v(2, 1), v(2, 2), 0.5_wp*d(2), gx, gy, gr)
     do k = 1, 2
       re(k) = rho_f*hypot(v(k, 3), v(k, 4))*d(k)/mu
@@ -572,6 +576,7 @@ contains
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
     real(wp), allocatable :: fld(:, :, :), id(:, :), disks(:, :)
+    type(particle_t), allocatable :: all(:)
     real(wp) :: uc, y0
     integer :: k
     associate (lp => sim%lp, nx => sim%dom%nx, nyl => sim%dom%nyl)
@@ -589,10 +594,11 @@ contains
       ! the rows of this step: a window that grows has more than at the open
       call io_set_rows(out%io, sim%dom%ny, sim%dom%y0, sim%dom%nyl)
       if (sim%particles_on) then
-        allocate (id(nx, nyl), disks(sim%parts%n, 6))
+        call particles_gather(sim%parts, sim%dom, all)
+        allocate (id(nx, nyl), disks(size(all), 6))
         call particles_solid_field(sim%parts, sim%dom, id)
-        do k = 1, sim%parts%n
-          associate (p => sim%parts%p(k))
+        do k = 1, size(all)
+          associate (p => all(k))
             ! as the /particles series computes them, so both hold the same bits
             disks(k, :) = [p%x*lp%dx, p%y*lp%dx + y0, p%u*lp%dx/lp%dt, p%v*lp%dx/lp%dt, &
                            p%omega/lp%dt, p%r*lp%dx]

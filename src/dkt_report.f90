@@ -1,7 +1,7 @@
 !> What the run tells its user on the log: the start-up summary (derived lattice, sizes,
 !> memory, models, output), a progress line now and then, and the performance at the end.
 module dkt_report
-  use mpi_f08, only: MPI_Wtime, MPI_Allreduce, MPI_SUM, MPI_IN_PLACE
+  use mpi_f08, only: MPI_Wtime, MPI_Allreduce, MPI_SUM, MPI_MAX, MPI_IN_PLACE, MPI_INTEGER8
   use dkt_kinds, only: wp, i8, MPI_WP
   use dkt_errors, only: warn
   use dkt_mrt, only: collision_describe
@@ -15,6 +15,7 @@ module dkt_report
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
   use dkt_timers, only: timer_seconds, timer_name, N_PARTS
+  use dkt_particles, only: particles_messages
   implicit none
   private
   public :: progress_t, report_summary, report_start, report_progress, report_performance
@@ -91,8 +92,8 @@ contains
                 ' MiB in all once the window has grown to '//itoa(lp%ny_max)//' rows)'
       end if
       if (sim%particles_on) then
-        write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%n, ' (', sim%parts%nlinks, &
-          ' boundary links on rank 0)'
+        write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%ntotal, ' (', &
+          sim%parts%nlinks, ' boundary links on rank 0)'
       else
         particles = 'particles: none'
       end if
@@ -197,7 +198,25 @@ contains
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
     call report_parts(sim, t)
+    if (sim%particles_on) call report_messages(sim, n - prog%first + 1)
   end subroutine report_performance
+
+  !> The `particle messages` line: the MPI calls the particles made per step, to neighbouring
+  !! slabs and collectives, the most of any rank (docs/design.md, "Particles across slabs");
+  !! output and checkpoints, which may gather, are not counted.
+  subroutine report_messages(sim, steps)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: steps
+    integer(i8) :: calls(2)
+    character(len=160) :: line
+    calls = particles_messages(sim%parts)
+    call MPI_Allreduce(MPI_IN_PLACE, calls, 2, MPI_INTEGER8, MPI_MAX, sim%dom%comm)
+    write (line, '(a,f0.2,a,f0.2,a,i0,a)') 'particle messages per step: ', &
+      real(calls(1), wp)/max(steps, 1), ' to neighbouring slabs, ', &
+      real(calls(2), wp)/max(steps, 1), ' collectives (the most of any rank; ', &
+      sim%parts%ntotal, ' particles)'
+    call log_line(trim(line))
+  end subroutine report_messages
 
   !> The `time per part` line: each part's share of the loop's wall time t, the mean over the
   !! ranks (dkt_timers says what each part holds; `other` is the rest: the step counters, the

@@ -88,7 +88,7 @@ contains
       end associate
     end do
     deepest = max(sim%parts%range, 1.0_wp)
-    h = max(2.0_wp*maxval(sim%parts%p(1:n)%r), 1.0_wp)
+    h = max(2.0_wp*maxval(sim%lp%particles%r(1:n)), 1.0_wp)
     ncx = max(1, ceiling(nx/h))
     ncy = max(1, ceiling(ny/h))
     allocate (head(0:ncx - 1, 0:ncy - 1), next(n), cell(2, n))
@@ -105,7 +105,7 @@ contains
           m = head(cx, cy)
           do while (m > 0)
             if (m > k) then
-              depth = sim%parts%p(k)%r + sim%parts%p(m)%r - &
+              depth = sim%lp%particles%r(k) + sim%lp%particles%r(m) - &
                       hypot(chk%particles(1, k) - chk%particles(1, m), &
                             chk%particles(2, k) - chk%particles(2, m))
               if (depth > deepest) then

@@ -14,10 +14,12 @@ module dkt_simulation
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
                         domain_resize, domain_move_rows, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
-  use dkt_particles, only: particles_init, particles_find_links, particles_bounce, &
-                           particles_interior, particles_inner_save, particles_inner_write, &
-                           particles_reduce_forces, particles_move, particles_stable_substeps, &
-                           particles_resize_rows
+  use dkt_particles, only: particles_init, particles_reduce_forces, particles_stable_substeps, &
+                           particles_resize_rows, particles_reach_rows, particles_exchange, &
+                           particles_agree, particles_pair
+  use dkt_particle_links, only: particles_find_links, particles_bounce, particles_interior, &
+                                particles_inner_save, particles_inner_write
+  use dkt_particle_motion, only: particles_move
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
                          MOTION_FIXED, MOTION_PRESCRIBED, &
                          BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
@@ -66,8 +68,11 @@ contains
     sim%particles_on = lp%particles_on
     min_rows = MIN_SLAB_ROWS
     if (sim%particles_on) then
-      ! a slab holds at least the largest particle plus its interpolation stencil
-      min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4)
+      ! a slab holds at least the largest particle plus its interpolation stencil, and is
+      ! thicker than a disk with the reach within which a slab holds it as a ghost, so that a
+      ! ghost's owner is always a neighbouring slab (dkt_particles)
+      min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4, &
+                     particles_reach_rows(0.5_wp*lp%largest_diameter/lp%dx, cfg%collision%range))
     end if
     call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
@@ -332,9 +337,10 @@ contains
     if (.not. sim%parts%fluid_interior) call particles_interior(sim%parts, sim%dom, sim%f_next)
     call timer_stop(PART_LINKS)
     call timer_start(PART_PARTICLES)
-    ! fixed particles only: every rank sums the forces, so that no state is sent back
-    call particles_reduce_forces(sim%parts, sim%dom,.not. sim%particles_move)
-    ! the owners move their particles (fixed ones stay) and send every rank the new state
+    ! each owner adds the rows of its particles' links, those of the neighbouring slabs too
+    call particles_reduce_forces(sim%parts, sim%dom)
+    ! the owners move their particles (fixed ones stay) and send the new states to the
+    ! neighbouring slabs that hold them
     call particles_move(sim%parts, sim%dom, sim%f_next, ends_at_rest(sim), sim%particles_move)
     call timer_stop(PART_PARTICLES)
     call timer_start(PART_WINDOW)
@@ -394,14 +400,15 @@ contains
   !! holds it there, and the flow through the end would blow up around it; docs/model.md §4).
   !! The input
   !! check refuses what a constant prescribed velocity makes predictable; this catches what it
-  !! cannot (a moving window, free particles). Every rank holds the same particle states, so
-  !! every rank returns the same failure at the same step and the loop stops them together.
+  !! cannot (a moving window, free particles). Each owner checks its own particles; the failure
+  !! of the lowest particle number goes to every rank (particles_agree), so every rank returns
+  !! the same failure at the same step and the loop stops them together.
   subroutine check_particle_places(sim, n, failure)
-    type(simulation_t), intent(in) :: sim
+    type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure
     real(wp) :: nx, ny, y0, dist, reach, near
-    integer :: k, m
+    integer :: k, m, id
     character(len=:), allocatable :: what, advice
     character(len=160) :: where
     logical :: walls_x, wall_lo, wall_hi, open_lo, open_hi
@@ -418,7 +425,10 @@ contains
     ! docs/model.md §4: the contact range, at least a spacing (a surface past the end row's nodes
     ! makes the flow through the end blow up within a few steps)
     near = max(sim%parts%range, 1.0_wp)
+    failure = ''
+    id = huge(0)
     do k = 1, sim%parts%n
+      if (sim%parts%home(k) /= sim%dom%rank) cycle
       what = ''
       advice = ''
       associate (p => sim%parts%p(k))
@@ -443,7 +453,7 @@ contains
               dist = hypot(p%x - q%x, p%y - q%y)
               reach = p%r + q%r
               if (q%motion == MOTION_FREE) reach = max(p%r, q%r)
-              if (dist < reach) what = 'it entered particle '//itoa(m)
+              if (dist < reach) what = 'it entered particle '//itoa(q%id)
             end associate
           end do
         else if (p%motion == MOTION_FREE) then
@@ -455,18 +465,19 @@ contains
         end if
         if (len(what) == 0) cycle
         if (len(advice) == 0) advice = 'Change its velocity or start (&particles u, v, x, y '// &
-                                       'of particle '//itoa(k)//')'
+                                       'of particle '//itoa(p%id)//')'
         y0 = 0.0_wp
         if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
         write (where, '(a,es12.5,a,es12.5,a,i0,a,es12.5,a)') ' at (x, y) = (', &
           p%x*sim%lp%dx, ',', p%y*sim%lp%dx + y0, ') cm, step ', n, ' (t = ', n*sim%lp%dt, ' s)'
+        id = p%id
       end associate
-      failure = trim(sim%cfg%file)//': particle '//itoa(k)//' (motion = '// &
-                quoted_motion(sim%cfg%particles%motion(k))//'): '//what//trim(where)// &
+      failure = trim(sim%cfg%file)//': particle '//itoa(id)//' (motion = '// &
+                quoted_motion(sim%cfg%particles%motion(id))//'): '//what//trim(where)// &
                 '; the run stops. '//advice//', or end the run earlier'
-      return
+      exit
     end do
-    failure = ''
+    call particles_agree(sim%parts, sim%dom, id, failure)
   contains
     !> 'its surface came within .. spacings of the lower end (an open end, ...)'
     function open_end(which, kind) result(s)
@@ -500,15 +511,20 @@ contains
     character(len=400) :: msg
     character(len=:), allocatable :: key, why
     real(wp) :: limit
+    integer :: shift
+    shift = sim%win%shift
     call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
-    k = window_escaped(sim%win, sim%parts, sim%lp%ny)
+    ! the particles moved up with the rows: some may now belong to, or reach, another slab
+    if (sim%win%shift /= shift .and. sim%particles_move) &
+      call particles_exchange(sim%parts, sim%dom)
+    k = window_escaped(sim%win, sim%dom, sim%parts, sim%lp%ny)
     do while (k > 0 .and. sim%lp%ny < sim%lp%ny_max)
       call simulation_grow(sim, min(sim%lp%ny_max, sim%lp%ny + sim%lp%grow_rows))
       write (msg, '(a,i0,a,f0.2,a,i0,a,i0,a)') 'window grown to ', sim%lp%ny, ' rows (above = ', &
         window_above(sim), ' D_1) at step ', n, ': particle ', k, &
         ' came within window.margin of its upper end'
       call log_line(trim(msg))
-      k = window_escaped(sim%win, sim%parts, sim%lp%ny)
+      k = window_escaped(sim%win, sim%dom, sim%parts, sim%lp%ny)
     end do
     if (k > 0) then
       ! a window of fixed length, or one grown to its limit: the key that would hold the pair
@@ -576,7 +592,7 @@ contains
     sim%f_next = grown
     call sweep_init(sim%ws, sim%dom%nxp)
     sim%lp%ny = ny
-    if (sim%particles_on) call particles_resize_rows(sim%parts, sim%dom)
+    if (sim%particles_on) call particles_resize_rows(sim%parts, old, sim%dom)
   end subroutine simulation_grow
 
   !> The gap of particles 1 and 2 after step n, for the kissing episodes (docs/model.md §6); every
@@ -584,10 +600,10 @@ contains
   subroutine pair_sample(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    real(wp) :: gx, gy, gr
-    associate (a => sim%parts%p(1), b => sim%parts%p(2))
-      call pair_gaps(a%x, a%y, a%r, b%x, b%y, b%r, gx, gy, gr)
-    end associate
+    real(wp) :: gx, gy, gr, v(3, 2)
+    ! particles 1 and 2 from their owners
+    call particles_pair(sim%parts, sim%dom, 1, 2, v)
+    call pair_gaps(v(1, 1), v(2, 1), v(3, 1), v(1, 2), v(2, 2), v(3, 2), gx, gy, gr)
     call pair_diag_update(sim%pair, n*sim%lp%dt, gr)
   end subroutine pair_sample
 

@@ -10,13 +10,12 @@
 !> point for coordinates >= 1), and every rank decides it from the same particle state, so a
 !> window run has the same bits on any number of ranks.
 module dkt_window
-  use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE
   use dkt_kinds, only: wp, sp, mpi_wp
   use dkt_lattice, only: equilibrium
   use dkt_domain, only: domain_t
   use dkt_store, only: lattice_t, lattice_set_node
-  use dkt_particles, only: particles_t, MOTION_FREE
+  use dkt_particles, only: particles_t, particles_lowest_free, particles_first_above
   implicit none
   private
   public :: window_t, window_init, window_offset, window_follow, window_escaped
@@ -63,15 +62,12 @@ contains
     type(particles_t), intent(inout) :: ps
     type(lattice_t), intent(inout) :: f
     real(wp) :: lowest
+    logical :: finite
     integer :: k, rows
     do rows = 1, dom%ny
-      lowest = huge(1.0_wp)
-      do k = 1, ps%n
-        if (ps%p(k)%motion /= MOTION_FREE) cycle
-        ! (tested first: an ordered comparison with NaN traps in the checked build)
-        if (.not. ieee_is_finite(ps%p(k)%y)) return
-        lowest = min(lowest, ps%p(k)%y)
-      end do
+      ! over every slab's own free particles (one reduction)
+      call particles_lowest_free(ps, dom, lowest, finite)
+      if (.not. finite) return
       if (lowest >= win%below - 1.0_wp) exit
       call shift_rows(dom, f)
       do k = 1, ps%n
@@ -81,16 +77,14 @@ contains
     end do
   end subroutine window_follow
 
-  !> The first particle (by index) within the margin of the window's upper end, 0 if none:
-  !! the pair has separated by more than the window holds.
-  pure integer function window_escaped(win, ps, ny) result(k)
+  !> The first particle (by number) within the margin of the window's upper end, 0 if none:
+  !! the pair has separated by more than the window holds. Every rank calls it.
+  integer function window_escaped(win, dom, ps, ny) result(k)
     type(window_t), intent(in) :: win
-    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(particles_t), intent(inout) :: ps
     integer, intent(in) :: ny !! rows of the lattice
-    do k = 1, ps%n
-      if (ps%p(k)%y + ps%p(k)%r > real(ny, wp) - win%margin) return
-    end do
-    k = 0
+    k = particles_first_above(ps, dom, real(ny, wp) - win%margin)
   end function window_escaped
 
   !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of

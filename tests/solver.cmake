@@ -49,3 +49,7 @@ dkt_add_pytest(NAME sweep_splits FILE tests/test_sweep_ranks.py LABELS mpi
   ARGS -k "matrix_covers")
 dkt_add_pytest(NAME sweep_ranks FILE tests/test_sweep_ranks.py LABELS mpi long PROCESSORS 2
   TIMEOUT 1500 ARGS -k "bitwise")
+# Particles owned by slabs: a box of settling disks on 1-4 ranks and both transports, migration
+# across every slab face, a restart on another rank count, the messages per step
+dkt_add_pytest(NAME particle_slabs FILE tests/test_particle_slabs.py LABELS mpi PROCESSORS 4
+  TIMEOUT 900)

@@ -13,7 +13,8 @@ program test_cells
   use dkt_check, only: check, finish
   use dkt_lattice, only: ex, ey
   use dkt_domain, only: domain_t, domain_init
-  use dkt_particles, only: particles_t, particles_init, particles_find_links, MOTION_FREE, BB_YU
+  use dkt_particles, only: particles_t, particles_init, MOTION_FREE, BB_YU
+  use dkt_particle_links, only: particles_find_links
   use dkt_cells, only: cells_t, cells_build, cells_near
   implicit none
   integer, parameter :: n = 150, nx = 60, ny = 90
@@ -41,9 +42,10 @@ program test_cells
   call particles_find_links(ps, dom)
   call search_all(want, want_inner)
 
-  got = reshape([(ps%lp(l), ps%lx(l), ps%ly(l), ps%ld(l), merge(1, 0, ps%lff(l)), &
+  ! (links name the particles a slab holds by their place there; the table, by their number)
+  got = reshape([(ps%p(ps%lp(l))%id, ps%lx(l), ps%ly(l), ps%ld(l), merge(1, 0, ps%lff(l)), &
                   l=1, ps%nlinks)], [5, ps%nlinks])
-  got_inner = reshape([(ps%inner(l)%k, ps%inner(l)%i, ps%inner(l)%j, ps%inner(l)%d, &
+  got_inner = reshape([(ps%p(ps%inner(l)%k)%id, ps%inner(l)%i, ps%inner(l)%j, ps%inner(l)%d, &
                         merge(1, 0, ps%inner(l)%ff), l=1, ps%ninner)], [5, ps%ninner])
   call check('cells: the boundary links of a search over every disk, in its order', &
              same(got, want), real(ps%nlinks - size(want, 2), wp))

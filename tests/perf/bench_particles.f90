@@ -12,8 +12,9 @@ program bench_particles
   use dkt_kinds, only: wp
   use dkt_domain, only: domain_t, domain_init
   use dkt_store, only: lattice_t
-  use dkt_particles, only: particles_t, particles_init, particles_find_links, particles_move, &
-                           MOTION_FREE, BB_YU
+  use dkt_particles, only: particles_t, particles_init, MOTION_FREE, BB_YU
+  use dkt_particle_links, only: particles_find_links
+  use dkt_particle_motion, only: particles_move
   implicit none
   integer, parameter :: repeats = 5
   real(wp), parameter :: pitch = 6.0_wp, radius = 2.0_wp

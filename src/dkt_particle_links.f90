@@ -1,0 +1,540 @@
+!> The boundary links of the particles a slab holds (docs/model.md §3): the exact circle
+!> intersection, curved bounce-back (E6: halfway, Yu, BFL), the momentum exchange of each link
+!> (E7, and the Galilean-invariant variant) summed per particle and row, the nodes inside the
+!> disks and those a moving disk uncovers.
+!>
+!> Interior nodes (coupling.interior): 'solid', they are not fluid: after each sweep they hold
+!> the equilibrium at the local particle velocity, and a node the particle uncovers is refilled
+!> with the equilibrium at the wall velocity and the mean density of its fluid neighbours.
+!> 'fluid', they hold fluid that streams and collides like the rest, bounced back from the inside
+!> of the surface on the interior links; nothing is reset or refilled.
+!>
+!> Every population these routines read or write goes through its unshifted 8-byte value
+!> (dkt_store), whatever lbm.precision stores: bounce-back with a moving wall, the equilibria
+!> and the density sums are point-wise physics, computed in 8 bytes. The work is that of the
+!> links and nodes of the disks a slab holds: nothing here loops over rows without links or over
+!> particles the slab does not hold.
+module dkt_particle_links
+  use ieee_arithmetic, only: ieee_is_finite
+  use dkt_kinds, only: wp, cs2
+  use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
+  use dkt_lattice, only: ex, ey, w, opp, equilibrium
+  use dkt_domain, only: domain_t, domain_edge_rows
+  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
+  use dkt_errors, only: internal_error
+  use dkt_text, only: itoa
+  use dkt_cells, only: cells_build, cells_box
+  use dkt_particles, only: particles_t, particle_t, inner_link_t
+  implicit none
+  private
+  public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
+            particles_inner_write, particles_solid_field, particles_refill, surface_velocity
+
+contains
+
+  !> The rigid-body velocity U + Omega x (x - X) of particle p at the point (px, py).
+  pure subroutine surface_velocity(p, px, py, ux, uy)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    real(wp), intent(out) :: ux, uy
+    ux = p%u - p%omega*(py - p%y)
+    uy = p%v + p%omega*(px - p%x)
+  end subroutine surface_velocity
+
+  !> Whether the point (px, py) lies strictly inside particle k.
+  pure logical function inside(p, px, py)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
+  end function inside
+
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle p, along
+  !! e_d that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
+  pure real(wp) function link_fraction(p, px, py, d) result(q)
+    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    integer, intent(in) :: d
+    real(wp) :: dxp, dyp, b, c, t
+    dxp = px - p%x
+    dyp = py - p%y
+    b = dxp*ex(d) + dyp*ey(d)
+    c = dxp*dxp + dyp*dyp - p%r*p%r
+    t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))/(ex(d)**2 + ey(d)**2)
+    q = min(max(t, 1.0e-6_wp), 1.0_wp)
+  end function link_fraction
+
+  !> The wall point x_w = x_f + q e_d of the link from node (i, jg) (global row) along e_d, the
+  !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
+  !! the population bounced back towards x_f. The interior side of the same link receives -W.
+  pure subroutine wall_of_link(p, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
+    type(particle_t), intent(in) :: p
+    integer, intent(in) :: i, jg, d
+    real(wp), intent(in) :: q, rho
+    real(wp), intent(out) :: xw, yw, uwx, uwy, wall
+    xw = i - 0.5_wp + q*ex(d)
+    yw = jg - 0.5_wp + q*ey(d)
+    call surface_velocity(p, xw, yw, uwx, uwy)
+    wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
+  end subroutine wall_of_link
+
+  !> The density at node (i, j) of this slab, summed as every routine here sums it.
+  real(wp) function node_density(f, i, j) result(rho)
+    type(lattice_t), intent(in) :: f
+    integer, intent(in) :: i, j
+    rho = sum(lattice_get_node(f, i, j))
+  end function node_density
+
+  !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
+  !! Within the slab and a row beyond it the mask says it (place_for_nodes); elsewhere only the
+  !! disks of the cells within rmax of the node are tested. Both need the present centres.
+  pure logical function is_fluid(ps, dom, i, jg)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: i, jg
+    integer :: k, l, i1, i2, j1, j2, jc
+    real(wp) :: px, py
+    is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
+    if (.not. is_fluid) return
+    if (jg - dom%y0 >= 0 .and. jg - dom%y0 <= dom%nyl + 1) then
+      is_fluid = .not. ps%solid(i, jg - dom%y0)
+      return
+    end if
+    px = i - 0.5_wp
+    py = jg - 0.5_wp
+    call cells_box(ps%cells, px, py, ps%rmax, i1, i2, j1, j2)
+    if (i1 == 0) then
+      is_fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
+      return
+    end if
+    associate (c => ps%cells)
+      ! the cells i1..i2 of a row of cells hold one run of c%items
+      do jc = j1, j2
+        do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
+          if (inside(ps%p(c%items(l)), px, py)) is_fluid = .false.
+        end do
+      end do
+      do l = 1, size(c%stray)
+        if (inside(ps%p(c%stray(l)), px, py)) is_fluid = .false.
+      end do
+    end associate
+  end function is_fluid
+
+  !> Place the present centres for is_fluid: in cells (a node lies only in disks whose centres
+  !! are within rmax of it), and the mask of the nodes of rows 0..nyl+1 that lie inside a disk
+  !! the slab holds (a slab holds every disk that reaches a row beyond it).
+  subroutine place_for_nodes(ps, dom)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer :: k, i, j, i1, i2, j1, j2
+    real(wp) :: py
+    call cells_build(ps%cells, ps%p(1:ps%n)%x, ps%p(1:ps%n)%y, 2.0_wp*ps%rmax)
+    if (allocated(ps%solid)) then
+      if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
+        deallocate (ps%solid)
+    end if
+    if (.not. allocated(ps%solid)) allocate (ps%solid(1:dom%nx, 0:dom%nyl + 1))
+    ps%solid = .false.
+    do k = 1, ps%n
+      associate (p => ps%p(k))
+        ! (a centre that is not finite lies in no node; the box is clipped before it becomes
+        ! an integer)
+        if (.not. (ieee_is_finite(p%x) .and. ieee_is_finite(p%y))) cycle
+        i1 = int(max(min(p%x - p%r, real(dom%nx + 1, wp)), 0.0_wp))
+        i2 = int(max(min(p%x + p%r, real(dom%nx, wp)), 0.0_wp)) + 1
+        j1 = int(max(min(p%y - p%r - dom%y0, real(dom%nyl + 2, wp)), -1.0_wp) + 1.0_wp) - 1
+        j2 = int(max(min(p%y + p%r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp)
+        do j = max(0, j1), min(dom%nyl + 1, j2)
+          py = dom%y0 + j - 0.5_wp
+          do i = max(1, i1), min(dom%nx, i2)
+            if (inside(p, i - 0.5_wp, py)) ps%solid(i, j) = .true.
+          end do
+        end do
+      end associate
+    end do
+  end subroutine place_for_nodes
+
+  !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
+  !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid
+  !! (exact intersection of the segment with the circle).
+  subroutine particles_find_links(ps, dom)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
+    real(wp) :: px, py, dist2, near2, deep2
+    call place_for_nodes(ps, dom)
+    n = 0
+    ps%ninner = 0
+    cap = max(16, size(ps%lp))
+    call resize(cap)
+    do k = 1, ps%n
+      associate (p => ps%p(k))
+        call box(p, dom, i1, i2, j1, j2)
+        ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
+        ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
+        ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
+        ! between is searched, with the same links in the same order
+        near2 = (p%r + 1.5_wp)**2
+        deep2 = max(p%r - 1.5_wp, 0.0_wp)**2
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            dist2 = (px - p%x)**2 + (py - p%y)**2
+            if (dist2 >= near2 .or. dist2 < deep2) cycle
+            if (.not. is_fluid(ps, dom, i, jg)) then
+              if (ps%fluid_interior) then
+                if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)
+              end if
+              cycle
+            end if
+            do d = 1, 8
+              if (.not. inside(p, px + ex(d), py + ey(d))) cycle
+              n = n + 1
+              if (n > cap) then
+                cap = 2*cap
+                call resize(cap)
+              end if
+              ps%lp(n) = k
+              ps%lx(n) = i
+              ps%ly(n) = j
+              ps%ld(n) = d
+              ps%lq(n) = link_fraction(p, px, py, d)
+              ps%lff(n) = is_fluid(ps, dom, i - ex(d), jg - ey(d))
+            end do
+          end do
+        end do
+      end associate
+    end do
+    ps%nlinks = n
+    call row_entries(ps)
+  contains
+    subroutine resize(m)
+      integer, intent(in) :: m
+      integer, allocatable :: ti(:)
+      real(wp), allocatable :: tr(:)
+      logical, allocatable :: tl(:)
+      integer :: keep
+      keep = min(n, size(ps%lp))
+      allocate (ti(m)); ti(1:keep) = ps%lp(1:keep); call move_alloc(ti, ps%lp)
+      allocate (ti(m)); ti(1:keep) = ps%lx(1:keep); call move_alloc(ti, ps%lx)
+      allocate (ti(m)); ti(1:keep) = ps%ly(1:keep); call move_alloc(ti, ps%ly)
+      allocate (ti(m)); ti(1:keep) = ps%ld(1:keep); call move_alloc(ti, ps%ld)
+      allocate (tr(m)); tr(1:keep) = ps%lq(1:keep); call move_alloc(tr, ps%lq)
+      allocate (tl(m)); tl(1:keep) = ps%lff(1:keep); call move_alloc(tl, ps%lff)
+      allocate (ti(m)); ti(1:keep) = ps%lrow(1:keep); call move_alloc(ti, ps%lrow)
+    end subroutine resize
+  end subroutine particles_find_links
+
+  !> Append the interior links of node (i, j) of this slab, which lies inside particle k
+  !! (coupling.interior = 'fluid'): each direction i with x_f = x_s - e_i outside k and a
+  !! lattice node (a fluid node, a halo node or a node of another particle; not beyond a side
+  !! or a closed end). q is computed from x_f as for the boundary link (x_f, i), so that both
+  !! sides of the link take the wall point, and u_w there, with the same bits.
+  subroutine add_inner_links(ps, dom, k, i, j)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: k, i, j
+    type(inner_link_t), allocatable :: grown(:)
+    integer :: d, fi, fjg
+    do d = 1, 8
+      fi = i - ex(d)
+      fjg = dom%y0 + j - ey(d)
+      if (inside(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (fi < 1 .or. fi > dom%nx) cycle
+      if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
+      if (ps%ninner == size(ps%inner)) then
+        allocate (grown(max(64, 2*ps%ninner)))
+        grown(1:ps%ninner) = ps%inner(1:ps%ninner)
+        call move_alloc(grown, ps%inner)
+      end if
+      ps%ninner = ps%ninner + 1
+      ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
+                                         link_fraction(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         is_fluid(ps, dom, fi, fjg), 0.0_wp)
+    end do
+  end subroutine add_inner_links
+
+  !> Interior side of the links (coupling.interior = 'fluid'), first half: with the halo rows
+  !! complete and before any boundary link is bounced, save for each interior link (x_s, i)
+  !! the population the interior node receives, half-way bounce-back from the inside,
+  !!     f_i(x_s, t+1) = f_ibar*(x_s) - W,
+  !! W the moving-wall term of the boundary link (x_f, i) (rho the density at x_f it uses, 1
+  !! when x_f is not a fluid node). The densities of the halo rows come from their owners, so
+  !! a link across a slab face uses the bits its boundary link uses. Every rank calls it.
+  subroutine particles_inner_save(ps, dom, f)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(in) :: f
+    integer :: l, i, j, d, fi, fj
+    real(wp) :: rho, xw, yw, uwx, uwy, wall
+    do i = 1, dom%nx
+      ps%rho_first(i) = node_density(f, i, 1)
+      ps%rho_last(i) = node_density(f, i, dom%nyl)
+    end do
+    call domain_edge_rows(dom, ps%rho_first, ps%rho_last, ps%rho_below, ps%rho_above)
+    do l = 1, ps%ninner
+      i = ps%inner(l)%i
+      j = ps%inner(l)%j
+      d = ps%inner(l)%d
+      fi = i - ex(d)
+      fj = j - ey(d)
+      rho = 1.0_wp
+      if (ps%inner(l)%ff) then
+        if (fj == 0) then
+          rho = ps%rho_below(fi)
+        else if (fj == dom%nyl + 1) then
+          rho = ps%rho_above(fi)
+        else
+          rho = node_density(f, fi, fj)
+        end if
+      end if
+      call wall_of_link(ps%p(ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+                        uwx, uwy, wall)
+      ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
+    end do
+  end subroutine particles_inner_save
+
+  !> Interior side, second half: after every boundary link has been bounced (E6 and E7 read
+  !! f_i*(x_f) and the density at x_f), write each saved value into slot i of x_f, which only
+  !! x_s pulls in the sweep.
+  subroutine particles_inner_write(ps, f)
+    type(particles_t), intent(in) :: ps
+    type(lattice_t), intent(inout) :: f
+    integer :: l
+    do l = 1, ps%ninner
+      associate (a => ps%inner(l))
+        call lattice_set(f, a%i - ex(a%d), a%j - ey(a%d), a%d, a%val)
+      end associate
+    end do
+  end subroutine particles_inner_write
+
+  !> E6 and E7 on the links whose fluid node lies in rows j1..j2: write the bounced population
+  !! f_ibar(x_f, t+1) into the slot of the solid node that x_f pulls it from, and add the link's
+  !! momentum exchange to the sums of rows j1..j2 (restarted here). f holds post-collision
+  !! populations, with the ghosts complete and, when j1..j2 touches row 1 or nyl, the halo rows
+  !! too. A link reads only fluid nodes (x_f, and x_f - e_i for Yu/BFL) and writes only a solid
+  !! slot that no other link reads and only x_f pulls, so links of rows 2..nyl-1 neither read
+  !! nor write a halo row, and the links can be taken in row groups while the halo travels.
+  subroutine particles_bounce(ps, dom, f, j1, j2)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
+    integer :: l, k, i, j, d, db, ilast, jlast
+    real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
+    if (j2 < j1) return
+    ilast = -1
+    jlast = -1
+    rho = 0.0_wp
+    do l = 1, ps%nrows
+      if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
+    end do
+    do l = 1, ps%nlinks
+      j = ps%ly(l)
+      if (j < j1 .or. j > j2) cycle
+      k = ps%lp(l)
+      i = ps%lx(l)
+      d = ps%ld(l)
+      db = opp(d)
+      q = ps%lq(l)
+      associate (p => ps%p(k))
+        ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
+        ! the links of a node follow one another; a link writes only a solid slot, so the
+        ! density at x_f is the same for all of them
+        if (i /= ilast .or. j /= jlast) then
+          rho = node_density(f, i, j)
+          ilast = i
+          jlast = j
+        end if
+        call wall_of_link(p, i, dom%y0 + j, d, q, rho, xw, yw, uwx, uwy, wall)
+        fi = lattice_get(f, i, j, d)
+        fib = lattice_get(f, i, j, db)
+        fff = 0.0_wp
+        if (ps%lff(l)) fff = lattice_get(f, i - ex(d), j - ey(d), d)
+        select case (ps%scheme)
+        case (BB_YU)
+          if (ps%lff(l)) then
+            fb = ((1.0_wp - q)*fff + q*fi + q*fib + wall)/(1.0_wp + q)
+          else
+            fb = fi + wall
+          end if
+        case (BB_BFL)
+          if (q < 0.5_wp) then
+            if (ps%lff(l)) then
+              fb = 2.0_wp*q*fi + (1.0_wp - 2.0_wp*q)*fff + wall
+            else
+              fb = fi + wall
+            end if
+          else
+            fb = (fi + (2.0_wp*q - 1.0_wp)*fib + wall)/(2.0_wp*q)
+          end if
+        case (BB_HALFWAY)
+          fb = fi + wall
+        case default
+          call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
+        end select
+        call lattice_set(f, i + ex(d), j + ey(d), db, fb)
+        ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the Galilean-invariant
+        ! form replaces e by e - u_w
+        fx = ex(d)*(fi + fb)
+        fy = ey(d)*(fi + fb)
+        if (ps%galilean) then
+          fx = fx - uwx*(fi - fb)
+          fy = fy - uwy*(fi - fb)
+        end if
+        associate (e => ps%lrow(l))
+          ps%rows(1, e) = ps%rows(1, e) + fx
+          ps%rows(2, e) = ps%rows(2, e) + fy
+          ps%rows(3, e) = ps%rows(3, e) + (xw - p%x)*fy - (yw - p%y)*fx
+        end associate
+      end associate
+    end do
+  end subroutine particles_bounce
+
+  !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
+  !! are not fluid; this keeps them finite and ready for refilling).
+  subroutine particles_interior(ps, dom, f)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    integer :: k, i, j, jg, i1, i2, j1, j2
+    real(wp) :: px, py, ux, uy
+    do k = 1, ps%n
+      associate (p => ps%p(k))
+        call box(p, dom, i1, i2, j1, j2)
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            if (.not. inside(p, px, py)) cycle
+            call surface_velocity(p, px, py, ux, uy)
+            call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
+          end do
+        end do
+      end associate
+    end do
+  end subroutine particles_interior
+
+  !> Nodes inside a particle's old disk (ps%old, the disks held before the move) and outside
+  !! every new one become fluid: equilibrium at the wall velocity there with the mean density of
+  !! their fluid neighbours. The particles are taken in id order, as one rank would take them; a
+  !! particle held before and not now, or now and not before, is beyond the reach of this slab's
+  !! rows in one of the two states and so uncovers none of its nodes.
+  subroutine particles_refill(ps, dom, f)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    integer :: k, m, i, j, jg, d, nf, i1, i2, j1, j2
+    real(wp) :: px, py, rho, ux, uy
+    call place_for_nodes(ps, dom)
+    m = 1
+    do k = 1, ps%n
+      do while (m <= ps%nold)
+        if (ps%old(m)%id >= ps%p(k)%id) exit
+        m = m + 1
+      end do
+      if (m > ps%nold) exit
+      if (ps%old(m)%id /= ps%p(k)%id) cycle
+      associate (o => ps%old(m), p => ps%p(k))
+        call box(o, dom, i1, i2, j1, j2)
+        do j = j1, j2
+          jg = dom%y0 + j
+          do i = i1, i2
+            px = i - 0.5_wp
+            py = jg - 0.5_wp
+            if (.not. inside(o, px, py)) cycle
+            if (.not. is_fluid(ps, dom, i, jg)) cycle
+            ! mean density of the fluid neighbours in the same row: a row is never split
+            ! between ranks, so the refill does not depend on the decomposition
+            rho = 0.0_wp
+            nf = 0
+            do d = 1, 3, 2
+              if (inside(o, px + ex(d), py)) cycle
+              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+              rho = rho + sum(lattice_get_node(f, i + ex(d), j))
+              nf = nf + 1
+            end do
+            if (nf > 0) then
+              rho = rho/nf
+            else
+              rho = 1.0_wp
+            end if
+            call surface_velocity(p, px, py, ux, uy)
+            call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
+          end do
+        end do
+      end associate
+    end do
+  end subroutine particles_refill
+
+  !> The per-row sums of E7: one entry per particle and row that holds its links, in the links'
+  !! order (particle, then row), each link pointing at its entry.
+  subroutine row_entries(ps)
+    type(particles_t), intent(inout) :: ps
+    integer :: l, k, n
+    if (.not. allocated(ps%rfirst)) allocate (ps%rfirst(0), ps%rlast(0))
+    if (size(ps%rfirst) < ps%n) then
+      deallocate (ps%rfirst, ps%rlast)
+      allocate (ps%rfirst(max(ps%n, 2*size(ps%rlast))), ps%rlast(max(ps%n, 2*size(ps%rlast))))
+    end if
+    ps%rfirst(1:ps%n) = 1
+    ps%rlast(1:ps%n) = 0
+    n = 0
+    do l = 1, ps%nlinks
+      k = ps%lp(l)
+      if (n == 0) then
+        n = 1
+      else if (ps%rk(n) /= k .or. ps%rj(n) /= ps%ly(l)) then
+        n = n + 1
+      end if
+      if (n > size(ps%rk)) call grow(max(64, 2*n))
+      if (ps%rlast(k) < ps%rfirst(k)) ps%rfirst(k) = n
+      ps%rlast(k) = n
+      ps%rk(n) = k
+      ps%rj(n) = ps%ly(l)
+      ps%lrow(l) = n
+    end do
+    ps%nrows = n
+    ps%rows(:, 1:n) = 0.0_wp
+  contains
+    subroutine grow(m)
+      integer, intent(in) :: m
+      integer, allocatable :: ti(:)
+      real(wp), allocatable :: tr(:, :)
+      allocate (ti(m)); ti(1:n - 1) = ps%rk(1:n - 1); call move_alloc(ti, ps%rk)
+      allocate (ti(m)); ti(1:n - 1) = ps%rj(1:n - 1); call move_alloc(ti, ps%rj)
+      allocate (tr(3, m)); call move_alloc(tr, ps%rows)
+    end subroutine grow
+  end subroutine row_entries
+
+  !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
+  !! nodes for the links and their second fluid nodes.
+  pure subroutine box(p, dom, i1, i2, j1, j2)
+    type(particle_t), intent(in) :: p
+    type(domain_t), intent(in) :: dom
+    integer, intent(out) :: i1, i2, j1, j2
+    i1 = max(1, floor(p%x - p%r) - 2)
+    i2 = min(dom%nx, ceiling(p%x + p%r) + 2)
+    j1 = max(1, floor(p%y - p%r) - 2 - dom%y0)
+    j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
+  end subroutine box
+
+  !> The particle index at each node of the slab (0 in the fluid), for output.
+  subroutine particles_solid_field(ps, dom, id)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(out) :: id(:, :)
+    integer :: k, i, j, i1, i2, j1, j2
+    id = 0.0_wp
+    do k = 1, ps%n
+      call box(ps%p(k), dom, i1, i2, j1, j2)
+      do j = j1, j2
+        do i = i1, i2
+          if (inside(ps%p(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = ps%p(k)%id
+        end do
+      end do
+    end do
+  end subroutine particles_solid_field
+end module dkt_particle_links

@@ -1,0 +1,100 @@
+!> The motion of the particles (docs/model.md §3–4): Newton–Euler (E8) with gravity and buoyancy
+!> (E9) and the short-range forces of dkt_collisions (E10–E11), in sub-steps; each owner moves its
+!> own particles, the messages of dkt_particles bring the new states to the slabs that hold
+!> them, and the nodes the disks uncovered are refilled (dkt_particle_links).
+module dkt_particle_motion
+  use dkt_kinds, only: wp, pi
+  use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
+  use dkt_domain, only: domain_t
+  use dkt_store, only: lattice_t
+  use dkt_collisions, only: collision_force_on
+  use dkt_errors, only: internal_error
+  use dkt_text, only: itoa
+  use dkt_cells, only: cells_build, cells_near
+  use dkt_particles, only: particles_t, particles_exchange
+  use dkt_particle_links, only: particles_refill
+  implicit none
+  private
+  public :: particles_move
+
+contains
+
+  !> E8–E11: each owner advances its particles by one fluid step (in sub-steps for the contact
+  !! forces, the other particles held at their start-of-step positions: a slab holds every
+  !! partner of its own particles), prescribed ones by their given velocity. The owners then
+  !! send the new states to the neighbouring slabs (particles_exchange): a particle whose centre
+  !! crossed into another slab is owned there from now on. Last, the nodes the particles
+  !! uncovered are refilled. When every particle is fixed (moving false) the owners compute
+  !! the contact forces and nothing is sent or refilled: no node is uncovered.
+  subroutine particles_move(ps, dom, f, end_walls, moving)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall (E11 against it)
+    logical, intent(in) :: moving    !! some particle is free or prescribed
+    real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), rs(ps%n), xk, yk
+    integer :: k, s, m
+    integer, allocatable :: near(:)
+    h = 1.0_wp/ps%substeps
+    ! contiguous copies of the start-of-step centres, made once: a component array passed on
+    ! would be copied per call
+    xs = ps%p(1:ps%n)%x
+    ys = ps%p(1:ps%n)%y
+    rs = ps%p(1:ps%n)%r
+    ! contact partners (E10) lie within r_k + rmax + range of a centre
+    call cells_build(ps%cells, xs, ys, 2.0_wp*ps%rmax + ps%range)
+    if (moving) then
+      if (.not. allocated(ps%old)) allocate (ps%old(0))
+      if (size(ps%old) < ps%n) then
+        deallocate (ps%old)
+        allocate (ps%old(max(ps%n, 2*size(ps%old))))
+      end if
+      ps%old(1:ps%n) = ps%p(1:ps%n)
+      ps%nold = ps%n
+    end if
+    do k = 1, ps%n
+      if (ps%home(k) /= dom%rank) cycle
+      xk = xs(k)
+      yk = ys(k)
+      ! the candidates once for all sub-steps: within the contact reach of the centre at the
+      ! start, plus the most it moves in a step (run.particle_speed_limit <= 1). A candidate
+      ! beyond the reach adds an exact zero (E10), so the sums are those of a query per sub-step
+      call cells_near(ps%cells, xk, yk, rs(k) + ps%rmax + ps%range + 2.0_wp, near, m)
+      associate (p => ps%p(k))
+        do s = 1, ps%substeps
+          xs(k) = p%x
+          ys(k) = p%y
+          call collision_force_on(k, xs, ys, rs, real(dom%nx, wp), real(dom%ny, wp), &
+                                  end_walls, ps%stiffness, ps%stiffness_overlap, ps%range, &
+                                  p%cx, p%cy, near(1:m))
+          select case (p%motion)
+          case (MOTION_FREE)
+            ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
+            gy = -(p%density_ratio - 1.0_wp)*pi*p%r**2*ps%gravity
+            ax = (p%fx + p%cx)/p%mass
+            ay = (p%fy + p%cy + gy)/p%mass
+            ! E8: X += U h + a h^2 / 2, U += a h, Omega += T/I h
+            p%x = p%x + p%u*h + 0.5_wp*ax*h*h
+            p%y = p%y + p%v*h + 0.5_wp*ay*h*h
+            p%u = p%u + ax*h
+            p%v = p%v + ay*h
+            p%omega = p%omega + p%torque/p%inertia*h
+          case (MOTION_PRESCRIBED)
+            p%x = p%x + p%u*h
+            p%y = p%y + p%v*h
+          case (MOTION_FIXED)
+          case default
+            call internal_error('particles_move: motion code '//itoa(p%motion))
+          end select
+        end do
+        xs(k) = xk
+        ys(k) = yk
+      end associate
+    end do
+    if (.not. moving) return
+    call particles_exchange(ps, dom)
+    ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
+    if (.not. ps%fluid_interior) call particles_refill(ps, dom, f)
+  end subroutine particles_move
+
+end module dkt_particle_motion

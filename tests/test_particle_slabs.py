@@ -1,0 +1,196 @@
+"""Particles owned by slabs (docs/design.md, "Particles across slabs"): a box of many settling
+disks gives the same bits on every rank count and split, with either transport, across the
+migrations of disks from slab to slab and across a restart on another rank count; and the
+particles' messages per step do not grow with the number of disks. Each test's name says what
+it proves."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from dkt_run import EXE, mpi_command, mpi_env
+
+# 80 x 97 nodes at 8 per D: 97 rows split unevenly on 2, 3 and 4 ranks (24-25 rows, the least a
+# slab of these disks may have is 12)
+DX = 0.0125
+NX, NY = 80, 97
+STEPS = 240
+
+
+def box_scene(path: Path, columns: int, rows: list[float]) -> Path:
+    """A closed box (walls at all four sides) with rows of `columns` disks of D = 0.1 cm (rho_p =
+    1.02) at the heights `rows` (cm), every other row shifted by a quarter pitch, released at
+    rest."""
+    d, width, height = 0.1, NX * DX, NY * DX
+    margin = 0.5 * d + 2 * DX  # two spacings from the side walls
+    pitch_x = (width - 2 * margin) / columns
+    xs, ys = [], []
+    for j, y in enumerate(rows):
+        for i in range(columns):
+            shift = (0.25 * (j % 2) - 0.125) * pitch_x
+            xs.append(margin + pitch_x * (i + 0.5) + shift)
+            ys.append(y)
+    n = len(xs)
+    path.write_text(
+        f"""&domain
+  width = {width}, height = {height}
+  sides = 'wall', lower = 'wall', upper = 'wall'
+/
+&fluid
+  density = 1.0, viscosity = 0.01
+/
+&lbm
+  tau = 0.65, cells_per_diameter = 8
+/
+&particles
+  count = {n}, gravity = 980.0
+  diameter = {n}*{d}
+  density = {n}*1.02
+  x = {", ".join(f"{v:.6f}" for v in xs)}
+  y = {", ".join(f"{v:.6f}" for v in ys)}
+/
+&collision
+  range = 2.0
+/
+&run
+  steps = {STEPS}, progress_every = 0, checkpoint_every = {STEPS // 2}
+/
+&output
+  series_interval = 0.01, field_interval = 0.1
+/
+"""
+    )
+    return path
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    # each row starts a spacing and a half above a slab face of the 4-rank split (y = 0.3125,
+    # 0.6125 and 0.9125 cm), and one row above those
+    return box_scene(tmp_path_factory.mktemp("scene") / "box.nml", 6, [1.13, 0.93, 0.63, 0.33])
+
+
+def launch(
+    scene: Path, ranks: int, out: Path, extra: list[str] | None = None, tcp: bool = False
+) -> str:
+    env = mpi_env()
+    if tcp:
+        # no shared memory between the ranks: they talk as ranks on different nodes do
+        env["OMPI_MCA_btl"] = "self,tcp"
+    cmd = [*mpi_command(ranks), str(EXE), str(scene), "--set", f"output.dir={out}", *(extra or [])]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0, f"{' '.join(cmd)}\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout
+
+
+def datasets(h5file: Path) -> dict[str, bytes]:
+    """Every dataset outside /run, as bytes."""
+    found: dict[str, bytes] = {}
+    with h5py.File(h5file, "r") as h5:
+
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset) and not name.startswith("run"):
+                found[name] = np.asarray(obj[()]).tobytes()
+
+        h5.visititems(visit)
+    return found
+
+
+@pytest.fixture(scope="module")
+def one_rank(scene: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("one") / "run"
+    launch(scene, 1, out)
+    return out
+
+
+def slab_of(y_cm: np.ndarray, ranks: int) -> np.ndarray:
+    """The rank whose rows hold each centre, as dktlbm splits NY rows over `ranks`."""
+    base, extra = divmod(NY, ranks)
+    starts = [r * base + min(r, extra) for r in range(ranks)]
+    rows = np.clip(np.floor(y_cm / DX).astype(int), 0, NY - 1)
+    return np.searchsorted(starts, rows, side="right") - 1
+
+
+def test_disks_migrate_across_every_slab_face_of_four_ranks(one_rank: Path) -> None:
+    """The scene is a real test of migration: on 4 ranks, disks change slab during the run,
+    across each of the three faces."""
+    with h5py.File(one_rank / "box.h5", "r") as h5:
+        y = h5["particles/y"][()]
+    owners = np.stack([slab_of(row, 4) for row in y])
+    crossed = {
+        (int(a), int(b))
+        for row0, row1 in zip(owners[:-1], owners[1:], strict=True)
+        for a, b in zip(row0, row1, strict=True)
+        if a != b
+    }
+    faces = {min(a, b) for a, b in crossed}
+    assert faces == {0, 1, 2}, f"slab changes seen: {sorted(crossed)}"
+
+
+@pytest.mark.parametrize("ranks,tcp", [(2, False), (3, False), (4, False), (3, True), (4, True)])
+def test_many_disks_give_the_same_bits_on_every_rank_count(
+    scene: Path, one_rank: Path, tmp_path: Path, ranks: int, tcp: bool
+) -> None:
+    """24 settling disks, 97 rows (uneven on 2, 3, 4 ranks): every dataset of the run file,
+    particles and fields, equals the 1-rank run's byte for byte, also without shared memory."""
+    out = tmp_path / "run"
+    launch(scene, ranks, out, tcp=tcp)
+    want, got = datasets(one_rank / "box.h5"), datasets(out / "box.h5")
+    assert want.keys() == got.keys()
+    differ = [name for name in want if want[name] != got[name]]
+    assert not differ, f"differ on {ranks} ranks: {differ[:5]}"
+
+
+def test_a_restart_on_another_rank_count_during_migrations_gives_the_same_bits(
+    scene: Path, one_rank: Path, tmp_path: Path
+) -> None:
+    """Half the run on 3 ranks with a checkpoint at the end, then the rest on 4 ranks: the
+    particles' series and the last fields equal the uninterrupted 1-rank run's."""
+    out = tmp_path / "run"
+    launch(scene, 3, out, ["--set", f"run.steps={STEPS // 2}"])
+    checkpoint = out / f"box_chk_{STEPS // 2:09d}.h5"
+    assert checkpoint.exists()
+    launch(scene, 4, out, ["--restart", str(checkpoint)])
+    with h5py.File(one_rank / "box.h5", "r") as a, h5py.File(out / "box.h5", "r") as b:
+        for name in ("x", "y", "u", "v", "omega", "fx", "fy"):
+            assert a["particles"][name][()].tobytes() == b["particles"][name][()].tobytes(), name
+        last = sorted(a["fields"])[-1]
+        want, got = a["fields"][last], b["fields"][last]
+        for name in ("rho", "ux", "uy", "particle", "particles/position", "particles/velocity"):
+            assert want[name][()].tobytes() == got[name][()].tobytes(), name
+
+
+MESSAGES = re.compile(
+    r"particle messages per step: ([0-9.]+) to neighbouring slabs, "
+    r"([0-9.]+) collectives"
+)
+
+
+@pytest.mark.parametrize("ranks", [1, 3])
+def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
+    tmp_path: Path, ranks: int
+) -> None:
+    """The same box with 2 and with 36 disks: the MPI calls the particles make per step are the
+    same, 8 to neighbouring slabs (counts and data, both ways, for the states and the force
+    sums) and 3 collectives of one or two numbers (the place and speed guards, the pair's gap);
+    no call per particle, as there once was."""
+    seen = []
+    for columns, rows in ((2, [1.1]), (6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])):
+        n = columns * len(rows)
+        scene = box_scene(tmp_path / f"box{n}.nml", columns, rows)
+        log = launch(
+            scene,
+            ranks,
+            tmp_path / f"run{n}",
+            ["--set", "run.steps=40", "--set", "run.checkpoint_every=0"],
+        )
+        found = MESSAGES.search(log)
+        assert found, log
+        seen.append((float(found[1]), float(found[2])))
+    assert seen[0] == seen[1] == (8.0, 3.0), seen
