@@ -29,9 +29,13 @@ contains
   !! memory check: (1) the lattice (one with lbm.streaming = 'in_place', two otherwise), 9
   !! populations per padded node (nxp columns, nyl rows and two halo rows) of 8 bytes, or 4 with
   !! lbm.precision = 'single' or 'single_arith';
-  !! (2) the particles: per-row force sums (3 doubles per row and particle) and the boundary
-  !! links, at most 8 per surface node and about pi d + 8 surface nodes per particle of d
-  !! spacings (28 bytes a link); (3) the output: the field buffer of
+  !! (2) the particles, counted as if the slab held all of them (a slab holds its own and the
+  !! ghosts within reach, and every rank reads the whole scene): per particle its state three
+  !! times over (held, before the move, the merge of a message; 128 bytes each) and two message
+  !! slots (16 doubles each), the boundary links, at most 8 per surface node and about pi d + 8
+  !! surface nodes per particle of d spacings (32 bytes a link), and the force sums of the rows
+  !! it spans (d + 4 rows, 40 bytes each); and the mask of the nodes inside disks (a 4-byte
+  !! logical per node of the slab and the rows beside it); (3) the output: the field buffer of
   !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column) and the
   !! row buffers of the sweep (SWEEP_ROW_DOUBLES per padded column).
   pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
@@ -47,7 +51,9 @@ contains
     bytes(2) = 0.0_wp
     if (n > 0) then
       d_cells = lp%largest_diameter/lp%dx
-      bytes(2) = real(n, wp)*(3.0_wp*8.0_wp*real(nyl, wp) + 28.0_wp*8.0_wp*(pi*d_cells + 8.0_wp))
+      bytes(2) = real(n, wp)*(3.0_wp*128.0_wp + 2.0_wp*16.0_wp*8.0_wp + &
+                              32.0_wp*8.0_wp*(pi*d_cells + 8.0_wp) + 40.0_wp*(d_cells + 4.0_wp)) + &
+                 4.0_wp*real(lp%nx, wp)*real(nyl + 2, wp)
     end if
     bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp) + &
                SWEEP_ROW_DOUBLES*8.0_wp*real(nxp, wp)

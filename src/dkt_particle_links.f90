@@ -473,11 +473,12 @@ contains
   !! order (particle, then row), each link pointing at its entry.
   subroutine row_entries(ps)
     type(particles_t), intent(inout) :: ps
-    integer :: l, k, n
+    integer :: l, k, n, m
     if (.not. allocated(ps%rfirst)) allocate (ps%rfirst(0), ps%rlast(0))
     if (size(ps%rfirst) < ps%n) then
+      m = max(ps%n, 2*size(ps%rfirst))
       deallocate (ps%rfirst, ps%rlast)
-      allocate (ps%rfirst(max(ps%n, 2*size(ps%rlast))), ps%rlast(max(ps%n, 2*size(ps%rlast))))
+      allocate (ps%rfirst(m), ps%rlast(m))
     end if
     ps%rfirst(1:ps%n) = 1
     ps%rlast(1:ps%n) = 0

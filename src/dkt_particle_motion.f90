@@ -46,8 +46,9 @@ contains
     if (moving) then
       if (.not. allocated(ps%old)) allocate (ps%old(0))
       if (size(ps%old) < ps%n) then
+        m = max(ps%n, 2*size(ps%old))
         deallocate (ps%old)
-        allocate (ps%old(max(ps%n, 2*size(ps%old))))
+        allocate (ps%old(m))
       end if
       ps%old(1:ps%n) = ps%p(1:ps%n)
       ps%nold = ps%n

@@ -275,8 +275,11 @@ contains
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     type(particle_t), intent(in) :: p
-    held = p%y + (p%r + ps%marg) > real(dom%y0, wp) .and. &
-           p%y - (p%r + ps%marg) < real(dom%y0 + dom%nyl, wp)
+    ! (a centre that is not finite is held by its owner alone; tested first: an ordered
+    ! comparison with NaN traps in the checked build)
+    held = ieee_is_finite(p%y)
+    if (held) held = p%y + (p%r + ps%marg) > real(dom%y0, wp) .and. &
+                     p%y - (p%r + ps%marg) < real(dom%y0 + dom%nyl, wp)
   end function held
 
   !> Keep of the whole scene `all` (ascending id) the particles this slab holds: its own and the
@@ -320,6 +323,7 @@ contains
     nu = 0
     do k = 1, ps%n
       if (ps%home(k) /= dom%rank) cycle
+      if (.not. ieee_is_finite(ps%p(k)%y)) cycle
       if (dom%below >= 0 .and. ps%p(k)%y - (ps%p(k)%r + ps%marg) < lo) then
         call fit_real(ps%sdn, NPACK*(nd + 1))
         call pack_particle(ps%p(k), ps%sdn(NPACK*nd + 1:NPACK*(nd + 1)))
@@ -625,7 +629,7 @@ contains
     integer :: k, mine
     mine = huge(0)
     do k = 1, ps%n
-      if (ps%home(k) /= dom%rank) cycle
+      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p(k)%y)) cycle
       if (ps%p(k)%y + ps%p(k)%r > top) mine = min(mine, ps%p(k)%id)
     end do
     call MPI_Allreduce(mine, id, 1, MPI_INTEGER, MPI_MIN, dom%comm)
