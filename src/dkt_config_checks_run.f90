@@ -9,7 +9,8 @@ module dkt_config_checks_run
   use dkt_registry, only: registry_t, check_key
   use dkt_text, only: quoted, fmt_num, itoa
   use dkt_config_types, only: config_t, MAX_STEPS
-  use dkt_config_scene, only: pair_d1, kiss_thresholds, dx_knob, velocity_scale_source
+  use dkt_config_scene, only: pair_d1, kiss_thresholds, dx_knob, velocity_scale_source, &
+                              pair_named
   use dkt_config_lattice, only: lattice_params_t, lattice_from
   use dkt_config_checks, only: check_t, chk_domain, chk_particles, chk_contacts, chk_pair, &
                                chk_window, val, src, from, item, dx_text, power, round6, &
@@ -65,6 +66,14 @@ contains
     ! a pair too close is the user's pair.dh, before it shows as an overlap of &particles
     if (c%pair%gamma > 0.0_wp) call chk_pair(ck, err)
     if (len(err) > 0) return
+    if (c%diagnostics%pair .and. c%particles%count < 2) then
+      ! accepted and then ignored would be worse: a pair needs two particles
+      err = from(ck, 'diagnostics.pair particles.count')//': &diagnostics pair = '// &
+            val(ck, 'diagnostics', 'pair')//' with '//itoa(c%particles%count)//' particle'// &
+            trim(merge('s', ' ', c%particles%count /= 1))//'; allowed: pair = .true. with '// &
+            'at least 2 particles (particles 1 and 2 are the pair)'
+      return
+    end if
     call chk_contacts(ck, err)
     if (len(err) > 0) return
     if (c%window%enabled) call chk_window(ck, err)
@@ -82,7 +91,7 @@ contains
     call chk_velocity_scale(ck, err)
     if (len(err) > 0) return
     call chk_stability_map(ck)
-    if (c%particles%count >= 2) then
+    if (pair_named(c)) then
       call chk_thresholds(ck, err)
       if (len(err) > 0) return
       call chk_duration(ck)

@@ -7,7 +7,7 @@ module dkt_config_lattice
   use dkt_config_types, only: config_t
   use dkt_config_scene, only: window_bottom, pair_d1, largest_diameter, kiss_enter_cells, &
                               kiss_thresholds, dx_knob, velocity_scale_source, &
-                              compressibility_class
+                              compressibility_class, pair_named
   implicit none
   private
   public :: lattice_from
@@ -58,6 +58,7 @@ module dkt_config_lattice
     real(wp) :: kiss_enter_cells = 0.0_wp !! spacings, diagnostics.enter_cells as it acts
     real(wp) :: kiss_enter = 0.0_wp   !! spacings, the gap D_r that starts a kissing episode
     real(wp) :: kiss_release = 0.0_wp !! spacings, the gap D_r that ends it
+    logical :: pair_on = .false.      !! particles 1 and 2 are a pair (pair_named)
     character(len=:), allocatable :: dx_knob         !! how to make dx smaller (advice)
     character(len=:), allocatable :: velocity_source !! the key(s) behind the velocity scale
     character(len=:), allocatable :: compressibility !! the O(Ma^2) error class of mach
@@ -123,6 +124,7 @@ contains
       lp%d1 = pair_d1(c)
       lp%largest_diameter = largest_diameter(c)
       call kiss_thresholds(c, lp%kiss_enter, lp%kiss_release)
+      lp%pair_on = pair_named(c)
     end if
     lp%ny_max = lp%ny
     if (c%window%enabled) then

@@ -10,7 +10,8 @@ module dkt_config_scene
   use dkt_config_types, only: config_t, TAU_MAX
   implicit none
   private
-  public :: expand, pair_d1, largest_diameter, window_bottom, kiss_enter_cells, kiss_thresholds
+  public :: expand, pair_d1, largest_diameter, window_bottom, kiss_enter_cells, kiss_thresholds, &
+            pair_named
   public :: dx_knob, velocity_scale, velocity_scale_source, compressibility_class
 
   !> the smallest tau lbm.mach may set: nu_lb >= 1/300, the 0.01 above 1/2 keeps clear of the
@@ -263,5 +264,14 @@ contains
       end do
     end associate
   end subroutine velocity_scale
+
+  !> Whether the scene names a pair, whose gap, kissing episodes and DKT pattern are followed
+  !! (docs/model.md §6): a pair scene (&pair gamma > 0), a scene of two particles, or particles 1
+  !! and 2 of a larger scene with diagnostics.pair. A suspension has none.
+  pure logical function pair_named(c)
+    type(config_t), intent(in) :: c
+    pair_named = c%particles%count == 2 .or. (c%particles%count > 2 .and. &
+                                              (c%pair%gamma > 0.0_wp .or. c%diagnostics%pair))
+  end function pair_named
 
 end module dkt_config_scene

@@ -159,6 +159,7 @@ module dkt_config_types
     real(wp) :: enter_d1 = 0.05_wp          !! .. or this fraction of D_1, whichever is larger
     real(wp) :: release_cells = 4.0_wp      !! it ends at D_r > this many spacings ..
     real(wp) :: release_d1 = 0.25_wp        !! .. or this fraction of D_1, whichever is larger
+    logical :: pair = .false.               !! particles 1 and 2 are a pair in a larger scene
   contains
     procedure :: register => diagnostics_register
   end type diagnostics_cfg_t
@@ -546,6 +547,9 @@ contains
                   'an episode ends at D_r > max(release_cells dx, release_d1 D_1)', ge=0.0_wp)
     call add_real(reg, 'diagnostics', 'release_d1', self%release_d1, '-', &
                   'see release_cells', ge=0.0_wp)
+    call add_logical(reg, 'diagnostics', 'pair', self%pair, 'the pair diagnostics of '// &
+                     'particles 1 and 2 in a scene of more than two; a pair scene (&pair) '// &
+                     'or a scene of two particles has them always')
   end subroutine diagnostics_register
 
   !> Register the keys of &coupling, each bound to its component of `self`.

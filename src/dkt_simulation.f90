@@ -115,7 +115,8 @@ contains
     ! the guards' advice names the knob that sets dx in this scene, and s_q where it is the
     ! measured cause of a run-away flow
     call guard_set_advice(lp%dx_knob, sim%coll%s_q, sim%particles_move .and. .not. sim%coll%bgk)
-    sim%pair_on = cfg%particles%count >= 2
+    ! a pair scene, two particles, or diagnostics.pair: a suspension follows no pair
+    sim%pair_on = lp%pair_on
     if (sim%pair_on) call pair_diag_init(sim%pair, lp%kiss_enter, lp%kiss_release)
     sim%stopped_early = ''
   end subroutine simulation_setup

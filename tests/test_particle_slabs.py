@@ -178,8 +178,8 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
 ) -> None:
     """The same box with 2 and with 36 disks: the MPI calls the particles make per step are the
     same, 8 to neighbouring slabs (counts and data, both ways, for the states and the force
-    sums) and 3 collectives of one or two numbers (the place and speed guards, the pair's gap);
-    no call per particle, as there once was."""
+    sums) and 3 collectives of one or two numbers (the place and speed guards, the gap of the
+    pair both scenes name); no call per particle, as there once was."""
     seen = []
     for columns, rows in ((2, [1.1]), (6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])):
         n = columns * len(rows)
@@ -188,9 +188,43 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
             scene,
             ranks,
             tmp_path / f"run{n}",
-            ["--set", "run.steps=40", "--set", "run.checkpoint_every=0"],
+            [
+                "--set",
+                "run.steps=40",
+                "--set",
+                "run.checkpoint_every=0",
+                "--set",
+                "diagnostics.pair=.true.",
+            ],
         )
         found = MESSAGES.search(log)
         assert found, log
         seen.append((float(found[1]), float(found[2])))
     assert seen[0] == seen[1] == (8.0, 3.0), seen
+
+
+def test_a_suspension_follows_no_pair_unless_it_names_one(tmp_path: Path) -> None:
+    """Twelve disks and no &pair: no pair diagnostics (no DKT pattern in the log, no
+    /diagnostics group, no CSV file); with diagnostics.pair = .true. particles 1 and 2 are
+    followed as a pair; diagnostics.pair with one particle is refused, naming the key."""
+    scene = box_scene(tmp_path / "susp.nml", 6, [1.1, 0.9])
+    steps = ["--set", "run.steps=20", "--set", "run.checkpoint_every=0"]
+    log = launch(scene, 2, tmp_path / "plain", steps)
+    assert "DKT pattern" not in log and "pair diagnostics" not in log
+    with h5py.File(tmp_path / "plain" / "susp.h5", "r") as h5:
+        assert "diagnostics" not in h5 and h5["particles/x"].shape[1] == 12
+    assert not (tmp_path / "plain" / "susp_diagnostics.csv").exists()
+    log = launch(scene, 2, tmp_path / "pair", [*steps, "--set", "diagnostics.pair=.true."])
+    assert "pair diagnostics: particles 1 and 2" in log and "DKT pattern" in log
+    with h5py.File(tmp_path / "pair" / "susp.h5", "r") as h5:
+        assert "diagnostics" in h5
+    single = box_scene(tmp_path / "one.nml", 1, [1.1])
+    one = subprocess.run(
+        [str(EXE), str(single), "--set", "diagnostics.pair=.true.", "--check"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=mpi_env(),
+    )
+    assert one.returncode == 2
+    assert "diagnostics.pair" in one.stderr and "at least 2 particles" in one.stderr
