@@ -10,6 +10,8 @@ module dkt_output
   use dkt_fields, only: macroscopic, vorticity
   use dkt_particles, only: particle_t, particles_gather
   use dkt_particle_links, only: particles_solid_field
+  use dkt_suspension, only: suspension_stats, suspension_bins, FRONT_FRACTION
+  use dkt_choices, only: MOTION_FREE
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
@@ -149,8 +151,8 @@ contains
       ! the output of the run that wrote the checkpoint continues, cut back to its step
       call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
                      sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, out%samples, &
-                     [character(len=11) :: 'particles', 'diagnostics'], &
-                     [sim%particles_on, sim%pair_on], &
+                     [character(len=11) :: 'particles', 'diagnostics', 'suspension'], &
+                     [sim%particles_on, sim%pair_on, suspension_on(sim)], &
                      sim%lp%field_every == 0 .or. mod(sim%step, max(1, sim%lp%field_every)) /= 0, &
                      [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
@@ -456,7 +458,46 @@ contains
     call io_write_table(out%io, 'particles', series_names, v, series_units)
     if (sim%window_on) call io_write_series(out%io, 'particles', ['window_offset'], [y0], ['cm'])
     if (sim%pair_on) call write_pair(out, sim, n, v)
+    if (suspension_on(sim)) call write_suspension(out, sim, n, v)
   end subroutine output_particles
+
+  !> A scene of three particles or more is a suspension: /suspension is written with
+  !! /particles (docs/suspensions.md).
+  pure logical function suspension_on(sim)
+    type(simulation_t), intent(in) :: sim
+    suspension_on = sim%particles_on .and. sim%cfg%particles%count >= 3
+  end function suspension_on
+
+  !> One sample of /suspension (dkt_suspension) from the particle sample `v` (particle,
+  !! quantity) in physical units as written to /particles: t, v_mean, v_rms, front,
+  !! segregation, and the area-fraction profile phi in bins of the largest diameter.
+  subroutine write_suspension(out, sim, n, v)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: n
+    real(wp), intent(in) :: v(:, :)
+    real(wp) :: stats(4), bin, height, y0
+    real(wp), allocatable :: phi(:)
+    associate (c => sim%cfg%particles, lp => sim%lp)
+      bin = lp%largest_diameter
+      height = lp%ny*lp%dx
+      y0 = 0.0_wp
+      if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
+      allocate (phi(suspension_bins(height, bin)))
+      call suspension_stats(v(:, 2) - y0, v(:, 4), lp%particles%r(1:c%count)*lp%dx, &
+                            c%motion_kind(1:c%count) == MOTION_FREE, lp%nx*lp%dx, height, &
+                            bin, stats, phi)
+      if (n == 0) then
+        call io_write_attribute(out%io, '/suspension', 'bin', bin)
+        call io_write_attribute(out%io, '/suspension', 'front_fraction', FRONT_FRACTION)
+      end if
+      stats(3) = stats(3) + y0
+      call io_write_series(out%io, 'suspension', &
+                           [character(len=11) :: 't', 'v_mean', 'v_rms', 'front', 'segregation'], &
+                           [n*lp%dt, stats], [character(len=4) :: 's', 'cm/s', 'cm/s', 'cm', '-'])
+      call io_write_table(out%io, 'suspension', ['phi'], reshape(phi, [size(phi), 1]), ['-'])
+    end associate
+  end subroutine write_suspension
 
   !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
   !! (particle, quantity) in physical units as written to /particles.

@@ -6,8 +6,10 @@ it proves."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 import h5py
@@ -15,6 +17,8 @@ import numpy as np
 import pytest
 
 from dkt_run import EXE, mpi_command, mpi_env
+
+ROOT = Path(__file__).resolve().parents[1]
 
 # 80 x 97 nodes at 8 per D: 97 rows split unevenly on 2, 3 and 4 ranks (24-25 rows, the least a
 # slab of these disks may have is 12)
@@ -228,3 +232,54 @@ def test_a_suspension_follows_no_pair_unless_it_names_one(tmp_path: Path) -> Non
     )
     assert one.returncode == 2
     assert "diagnostics.pair" in one.stderr and "at least 2 particles" in one.stderr
+
+
+def test_the_suspension_series_agree_with_the_particle_series(one_rank: Path) -> None:
+    """/suspension, written with /particles for a scene of three disks or more: v_mean and
+    v_rms are the mean and root mean square of the disks' v, the front is the height below
+    which 95 % of the centres lie, the segregation index is 0 for one size, and phi(y) holds
+    the disks' whole area (its integral over the box equals N pi r^2 at every sample)."""
+    with h5py.File(one_rank / "box.h5", "r") as h5:
+        p, s = h5["particles"], h5["suspension"]
+        y, v = p["y"][()], p["v"][()]
+        assert np.array_equal(s["t"][()], p["t"][()])
+        assert np.allclose(s["v_mean"][()], v.mean(axis=1), rtol=1e-12, atol=1e-15)
+        assert np.allclose(s["v_rms"][()], np.sqrt((v**2).mean(axis=1)), rtol=1e-12, atol=1e-15)
+        rank = int(np.ceil(0.95 * y.shape[1])) - 1
+        assert np.array_equal(s["front"][()], np.sort(y, axis=1)[:, rank])
+        assert not s["segregation"][()].any()
+        bin_ = s.attrs["bin"]
+        assert bin_ == pytest.approx(0.1)
+        area = s["phi"][()].sum(axis=1) * bin_ * NX * DX
+        assert np.allclose(area, y.shape[1] * np.pi * 0.05**2, rtol=1e-9)
+        assert s["phi"].shape[1] == int(np.ceil(NY * DX / bin_ - 1e-9))
+
+
+def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
+    one_rank: Path, tmp_path: Path
+) -> None:
+    """dkt-suspension draws the box's run file (a PNG); a file without /suspension (a scene of
+    two disks) gets one line naming what is missing and exit status 2, not a traceback."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "postproc"))
+    png = tmp_path / "s.png"
+    done = subprocess.run(
+        [sys.executable, "-m", "dktlbm.suspension", str(one_rank / "box.h5"), "-o", str(png)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    pair = box_scene(tmp_path / "pair.nml", 2, [1.1])
+    launch(pair, 1, tmp_path / "pair", ["--set", "run.steps=10", "--set", "run.checkpoint_every=0"])
+    refused = subprocess.run(
+        [sys.executable, "-m", "dktlbm.suspension", str(tmp_path / "pair" / "pair.h5")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert refused.returncode == 2
+    assert "Traceback" not in refused.stderr and "/suspension" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1, refused.stderr

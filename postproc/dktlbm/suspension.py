@@ -1,0 +1,125 @@
+"""A settling suspension from its run file (docs/suspensions.md): the upper front's height, the
+mean and rms settling velocity and, with two sizes, the segregation index against time (the
+/suspension series), the area-fraction profile phi(y) at a few times, and snapshot panels of
+the disks (from /particles) at the same times."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .read import (
+    Run,
+    RunFileError,
+    add_output_options,
+    guarded,
+    open_h5,
+    open_run,
+    output_path,
+    save_figure,
+)
+
+SERIES = ("t", "v_mean", "v_rms", "front", "segregation", "phi")
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="dkt-suspension",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example: dkt-suspension runs/sediment504/sediment504.h5 --panels 4",
+    )
+    p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file of 3+ disks")
+    p.add_argument("--panels", type=int, default=4, metavar="N",
+                   help="snapshot panels, evenly spaced in time from the first sample to the "
+                        "last (1-8; default 4)")
+    add_output_options(p, "suspension")
+    return p
+
+
+def read_suspension(path: Path) -> dict[str, np.ndarray | float]:
+    """The /suspension series and its bin height (cm); RunFileError without them (a scene of
+    fewer than three disks, or a file written before they were)."""
+    with open_h5(path) as h5:
+        if "suspension" not in h5:
+            raise RunFileError(path, "no /suspension series (a scene of three particles or "
+                                     "more writes them)")
+        g = h5["suspension"]
+        missing = [name for name in SERIES if name not in g]
+        if missing:
+            raise RunFileError(path, f"/suspension lacks {', '.join(missing)}")
+        out: dict[str, np.ndarray | float] = {name: g[name][()] for name in SERIES}
+        out["bin"] = float(g.attrs["bin"])
+    return out
+
+
+def plot(run: Run, s: dict[str, np.ndarray | float], panels: int):
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    t = np.asarray(s["t"])
+    n = len(t)
+    picks = sorted({int(round(k)) for k in np.linspace(0, n - 1, panels)})
+    fig = Figure(figsize=(3.0 * len(picks), 9.0), layout="constrained")
+    grid = fig.add_gridspec(3, len(picks))
+    ax = fig.add_subplot(grid[0, :])
+    ax.plot(t, s["front"], label="upper front (95 % of centres below)")
+    ax.set_ylabel("height (cm)")
+    ax.grid(True, alpha=0.3)
+    ax2 = ax.twinx()
+    ax2.plot(t, s["v_mean"], color="tab:red", label="mean v")
+    ax2.plot(t, s["v_rms"], color="tab:red", linestyle="--", label="rms v")
+    seg = np.asarray(s["segregation"])
+    if seg.any():
+        ax2.plot(t, seg, color="tab:green", label="segregation index")
+    ax2.set_ylabel("cm/s (index: -)")
+    lines = ax.get_lines() + ax2.get_lines()
+    ax.legend(lines, [line.get_label() for line in lines], fontsize="small", loc="best")
+    ax.set_xlabel("t (s)")
+    phi = np.asarray(s["phi"])
+    centres = (np.arange(phi.shape[1]) + 0.5) * float(s["bin"])
+    height = phi.shape[1] * float(s["bin"])
+    r = 0.5 * run.diameters
+    for col, k in enumerate(picks):
+        snap = fig.add_subplot(grid[1, col], aspect="equal")
+        for x, y, rk in zip(run.series["x"][k], run.series["y"][k], r, strict=True):
+            snap.add_patch(Circle((x, y), rk, color="0.3", linewidth=0))
+        snap.set_xlim(0.0, run.width)
+        snap.set_ylim(0.0, height)
+        snap.set_title(f"t = {t[k]:.3g} s", fontsize="small")
+        snap.tick_params(labelsize="x-small")
+        prof = fig.add_subplot(grid[2, col])
+        prof.plot(phi[k], centres)
+        prof.set_xlim(0.0, max(0.05, float(phi.max()) * 1.05))
+        prof.set_ylim(0.0, height)
+        prof.set_xlabel(r"$\phi$", fontsize="small")
+        prof.tick_params(labelsize="x-small")
+        if col == 0:
+            snap.set_ylabel("y (cm)")
+            prof.set_ylabel("y (cm)")
+    fig.suptitle(f"{run.name}: {run.count} disks, W = {run.width:g} cm")
+    return fig
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    if not 1 <= args.panels <= 8:
+        parser().error(f"--panels {args.panels}: allowed 1 to 8")
+
+    def body() -> int:
+        s = read_suspension(args.run)
+        run = open_run(args.run)
+        if len(np.asarray(s["t"])) != len(run.t):
+            raise RunFileError(args.run, "/suspension and /particles differ in length")
+        save_figure(plot(run, s, args.panels), output_path(args.run, "suspension", args.output),
+                    args.pdf)
+        return 0
+
+    return guarded(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
