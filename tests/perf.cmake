@@ -57,3 +57,16 @@ set_target_properties(bench_particles PROPERTIES
   RUNTIME_OUTPUT_DIRECTORY "${CMAKE_CURRENT_BINARY_DIR}"
   Fortran_MODULE_DIRECTORY "${CMAKE_BINARY_DIR}/mod/tests/bench_particles")
 dkt_set_fortran_flags(bench_particles)
+
+# Benchmark (label perf): the 504-disk cavity at 8 per D against the same box without disks, on
+# 1 and 2 ranks, median of 3 interleaved runs; prints the ratio and what 2 ranks gain for each.
+if(Python3_FOUND)
+  add_test(NAME perf_suspension
+    COMMAND "${Python3_EXECUTABLE}" "${CMAKE_CURRENT_SOURCE_DIR}/perf/bench_suspension.py"
+      --exe $<TARGET_FILE:dktlbm> --mpiexec "${MPIEXEC_EXECUTABLE}" --ranks 1 2 --repeats 3)
+  set_tests_properties(perf_suspension PROPERTIES
+    LABELS perf
+    TIMEOUT 3600
+    RUN_SERIAL TRUE
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
+endif()
