@@ -207,7 +207,7 @@ contains
       end associate
     end do
     ps%nlinks = n
-    call row_entries(ps)
+    call row_entries(ps, dom%nyl)
   contains
     subroutine resize(m)
       integer, intent(in) :: m
@@ -321,7 +321,7 @@ contains
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
-    integer :: l, k, i, j, d, db, ilast, jlast
+    integer :: l, m, k, i, j, d, db, ilast, jlast
     real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
     if (j2 < j1) return
     ilast = -1
@@ -330,9 +330,13 @@ contains
     do l = 1, ps%nrows
       if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
     end do
-    do l = 1, ps%nlinks
+    ! the links row by row (ps%lorder), each row's in their order (particle, column,
+    ! direction): the lattice is read and written along its rows, and each row sum still adds
+    ! its links in their order. A link reads only fluid nodes and writes only a solid slot that
+    ! no other link reads, so the order of the links does not change what they compute.
+    do m = ps%lstart(max(j1, 1)), ps%lstart(min(j2, dom%nyl) + 1) - 1
+      l = ps%lorder(m)
       j = ps%ly(l)
-      if (j < j1 .or. j > j2) cycle
       k = ps%lp(l)
       i = ps%lx(l)
       d = ps%ld(l)
@@ -471,8 +475,9 @@ contains
 
   !> The per-row sums of E7: one entry per particle and row that holds its links, in the links'
   !! order (particle, then row), each link pointing at its entry.
-  subroutine row_entries(ps)
+  subroutine row_entries(ps, nyl)
     type(particles_t), intent(inout) :: ps
+    integer, intent(in) :: nyl !! rows of the slab
     integer :: l, k, n, m
     if (.not. allocated(ps%rfirst)) allocate (ps%rfirst(0), ps%rlast(0))
     if (size(ps%rfirst) < ps%n) then
@@ -499,6 +504,36 @@ contains
     end do
     ps%nrows = n
     ps%rows(:, 1:n) = 0.0_wp
+    ! the links by row, stable (a counting sort): lorder(lstart(j) .. lstart(j + 1) - 1) are
+    ! the links of row j in their order
+    if (.not. allocated(ps%lstart)) allocate (ps%lstart(0))
+    if (size(ps%lstart) /= nyl + 1) then
+      deallocate (ps%lstart)
+      allocate (ps%lstart(nyl + 1))
+    end if
+    if (.not. allocated(ps%lorder)) allocate (ps%lorder(0))
+    if (size(ps%lorder) < ps%nlinks) then
+      deallocate (ps%lorder)
+      allocate (ps%lorder(max(ps%nlinks, 2*size(ps%lp))))
+    end if
+    ps%lstart = 0
+    do l = 1, ps%nlinks
+      ps%lstart(ps%ly(l)) = ps%lstart(ps%ly(l)) + 1
+    end do
+    m = 1
+    do k = 1, nyl + 1
+      n = ps%lstart(k)
+      ps%lstart(k) = m
+      m = m + n
+    end do
+    do l = 1, ps%nlinks
+      k = ps%ly(l)
+      ps%lorder(ps%lstart(k)) = l
+      ps%lstart(k) = ps%lstart(k) + 1
+    end do
+    ! each start now points at the next row's first link: shift back by one row
+    ps%lstart(2:) = ps%lstart(1:nyl)
+    ps%lstart(1) = 1
   contains
     subroutine grow(m)
       integer, intent(in) :: m

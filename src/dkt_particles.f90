@@ -89,6 +89,8 @@ module dkt_particles
     real(wp), allocatable :: lq(:)                      !! fluid fraction of the link
     logical, allocatable :: lff(:)                      !! second fluid node available
     integer, allocatable :: lrow(:)                     !! the row-sum entry of the link
+    !> the links of local row j are lorder(lstart(j) .. lstart(j + 1) - 1), in their order
+    integer, allocatable :: lorder(:), lstart(:)
     ! E7 per particle and row: entry e sums the links of particle rk(e) in local row rj(e);
     ! a particle's entries are rfirst(k)..rlast(k), ascending rows
     integer :: nrows = 0
