@@ -283,3 +283,20 @@ def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
     assert refused.returncode == 2
     assert "Traceback" not in refused.stderr and "/suspension" in refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+
+
+def test_the_segregation_index_of_two_sizes_is_their_mean_heights_apart(tmp_path: Path) -> None:
+    """Two sizes (the upper row D = 0.05 cm, the lower 0.1 cm): /suspension/segregation is
+    (mean y of the small disks - mean y of the large ones)/H at every sample, H the box's
+    height, positive with the small ones above."""
+    scene = box_scene(tmp_path / "two.nml", 6, [1.1, 0.9])
+    sizes = ", ".join("0.05" if k < 6 else "0.1" for k in range(12))
+    scene.write_text(re.sub(r"diameter = 12\*0\.1", f"diameter = {sizes}", scene.read_text()))
+    launch(scene, 2, tmp_path / "run", ["--set", "run.steps=20", "--set", "run.checkpoint_every=0"])
+    with h5py.File(tmp_path / "run" / "two.h5", "r") as h5:
+        y = h5["particles/y"][()]
+        small = np.arange(12) < 6
+        want = (y[:, small].mean(axis=1) - y[:, ~small].mean(axis=1)) / (NY * DX)
+        got = h5["suspension/segregation"][()]
+    assert got[0] == pytest.approx(0.2 / (NY * DX), rel=1e-9)
+    assert np.allclose(got, want, rtol=1e-9, atol=1e-15)
