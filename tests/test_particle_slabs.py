@@ -258,8 +258,8 @@ def test_the_suspension_series_agree_with_the_particle_series(one_rank: Path) ->
 def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
     one_rank: Path, tmp_path: Path
 ) -> None:
-    """dkt-suspension draws the box's run file (a PNG); a file without /suspension (a scene of
-    two disks) gets one line naming what is missing and exit status 2, not a traceback."""
+    """dkt-suspension draws the box's run file (a PNG) and prints its summary; a file without
+    /suspension (a scene of two disks) gets one line naming what is missing and exit status 2, not a traceback."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "postproc"))
     png = tmp_path / "s.png"
     done = subprocess.run(
@@ -271,6 +271,15 @@ def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
     )
     assert done.returncode == 0, done.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    told = subprocess.run(
+        [sys.executable, "-m", "dktlbm.suspension", str(one_rank / "box.h5"), "--summary"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert told.returncode == 0, told.stderr
+    assert told.stdout.startswith("24 disks") and "smallest surface gap" in told.stdout
     pair = box_scene(tmp_path / "pair.nml", 2, [1.1])
     launch(pair, 1, tmp_path / "pair", ["--set", "run.steps=10", "--set", "run.checkpoint_every=0"])
     refused = subprocess.run(

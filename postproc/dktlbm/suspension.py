@@ -36,6 +36,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--panels", type=int, default=4, metavar="N",
                    help="snapshot panels, evenly spaced in time from the first sample to the "
                         "last (1-8; default 4)")
+    p.add_argument("--summary", action="store_true",
+                   help="print the figures a suspension is compared by instead of drawing")
     add_output_options(p, "suspension")
     return p
 
@@ -104,6 +106,35 @@ def plot(run: Run, s: dict[str, np.ndarray | float], panels: int):
     return fig
 
 
+def summary(run: Run, s: dict[str, np.ndarray | float]) -> list[str]:
+    """The figures a suspension is compared by, as lines: when the first disk reached the
+    bottom (its surface within 2 lattice spacings), the front and the settling velocities at a
+    few times, and at the last sample the fastest disk, the smallest gap between two surfaces
+    (negative: an overlap) and the packed area fraction (the disks' area over the box's below
+    the highest disk top)."""
+    t = np.asarray(s["t"])
+    x, y, v = run.series["x"], run.series["y"], run.series["v"]
+    r = 0.5 * run.diameters
+    lines = [f"{run.count} disks, {len(t)} samples to t = {t[-1]:.4g} s"]
+    near = np.flatnonzero(((y - r) < 2.0 * run.dx).any(axis=1))
+    lines.append("first disk at the bottom (surface within 2 spacings): "
+                 + (f"t = {t[near[0]]:.4g} s" if near.size else "not by the end"))
+    for k in sorted({int(round(k)) for k in np.linspace(0, len(t) - 1, 9)}):
+        lines.append(f"t = {t[k]:8.4g} s  front {float(s['front'][k]):.4f} cm  v_mean "
+                     f"{float(s['v_mean'][k]):+.4f} cm/s  v_rms {float(s['v_rms'][k]):.4f} cm/s")
+    last = -1
+    dx_ = x[last][:, None] - x[last][None, :]
+    dy_ = y[last][:, None] - y[last][None, :]
+    gap = np.hypot(dx_, dy_) - (r[:, None] + r[None, :])
+    np.fill_diagonal(gap, np.inf)
+    top = float((y[last] + r).max())
+    packed = float((np.pi * r**2).sum()) / (run.width * top)
+    lines.append(f"at t = {t[last]:.4g} s: fastest disk {np.abs(v[last]).max():.4g} cm/s, "
+                 f"smallest surface gap {gap.min():.4g} cm ({gap.min() / run.dx:.3g} spacings), "
+                 f"highest disk top {top:.4f} cm, packed area fraction {packed:.3f}")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     if not 1 <= args.panels <= 8:
@@ -114,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
         run = open_run(args.run)
         if len(np.asarray(s["t"])) != len(run.t):
             raise RunFileError(args.run, "/suspension and /particles differ in length")
+        if args.summary:
+            print("\n".join(summary(run, s)))
+            return 0
         save_figure(plot(run, s, args.panels), output_path(args.run, "suspension", args.output),
                     args.pdf)
         return 0
