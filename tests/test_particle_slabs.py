@@ -259,7 +259,8 @@ def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
     one_rank: Path, tmp_path: Path
 ) -> None:
     """dkt-suspension draws the box's run file (a PNG) and prints its summary; a file without
-    /suspension (a scene of two disks) gets one line naming what is missing and exit status 2, not a traceback."""
+    /suspension (a scene of two disks) gets one line naming what is missing and exit status 2,
+    not a traceback."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "postproc"))
     png = tmp_path / "s.png"
     done = subprocess.run(
