@@ -164,8 +164,12 @@ contains
     call place_for_nodes(ps, dom)
     n = 0
     ps%ninner = 0
-    cap = max(16, size(ps%lp))
-    call resize(cap)
+    ! the arrays keep their size from step to step (twice as long when they fill)
+    cap = size(ps%lp)
+    if (cap < 16) then
+      cap = 16
+      call resize(cap)
+    end if
     do k = 1, ps%n
       associate (p => ps%p(k))
         call box(p, dom, i1, i2, j1, j2)
