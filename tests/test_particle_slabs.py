@@ -291,7 +291,7 @@ def test_dkt_suspension_draws_a_suspension_and_refuses_a_pair_in_one_line(
         env=env,
     )
     assert refused.returncode == 2
-    assert "Traceback" not in refused.stderr and "/suspension" in refused.stderr
+    assert "Traceback" not in refused.stderr and "2 particles" in refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1, refused.stderr
 
 

@@ -42,13 +42,12 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def read_suspension(path: Path) -> dict[str, np.ndarray | float]:
-    """The /suspension series and its bin height (cm); RunFileError without them (a scene of
-    fewer than three disks, or a file written before they were)."""
+def read_suspension(path: Path) -> dict[str, np.ndarray | float] | None:
+    """The /suspension series and its bin height (cm); None in a file without them (written
+    before they were, or of fewer than three disks)."""
     with open_h5(path) as h5:
         if "suspension" not in h5:
-            raise RunFileError(path, "no /suspension series (a scene of three particles or "
-                                     "more writes them)")
+            return None
         g = h5["suspension"]
         missing = [name for name in SERIES if name not in g]
         if missing:
@@ -56,6 +55,37 @@ def read_suspension(path: Path) -> dict[str, np.ndarray | float]:
         out: dict[str, np.ndarray | float] = {name: g[name][()] for name in SERIES}
         out["bin"] = float(g.attrs["bin"])
     return out
+
+
+def from_particles(run: Run) -> dict[str, np.ndarray | float]:
+    """The /suspension series computed from /particles as dktlbm computes them
+    (src/dkt_suspension.f90), for a run file written before it stored them: all disks counted
+    as free, the box's height from &domain height, bins of the largest diameter."""
+    y, v = run.series["y"], run.series["v"]
+    r = 0.5 * run.diameters
+    height = run.settings.number("domain", "height")
+    bin_ = float(2.0 * r.max())
+    nb = max(1, int(np.ceil(height / bin_ - 1e-9)))
+    rank = max(1, int(np.ceil(0.95 * y.shape[1]))) - 1
+    small, large = r.min(), r.max()
+    two = large > small and bool(np.all((r == small) | (r == large)))
+    lines = np.arange(nb + 1) * bin_
+
+    def below(h: np.ndarray, c: np.ndarray) -> np.ndarray:
+        t = np.clip((h[None, :] - c[:, None]) / r[:, None], -1.0, 1.0)
+        return r[:, None] ** 2 * (np.arcsin(t) + t * np.sqrt(1.0 - t * t) + 0.5 * np.pi)
+
+    phi = np.stack([np.diff(below(lines, row), axis=1).sum(axis=0) for row in y])
+    return {
+        "t": run.t,
+        "v_mean": v.mean(axis=1),
+        "v_rms": np.sqrt((v**2).mean(axis=1)),
+        "front": np.sort(y, axis=1)[:, rank],
+        "segregation": ((y[:, r == small].mean(axis=1) - y[:, r == large].mean(axis=1)) / height
+                        if two else np.zeros(len(run.t))),
+        "phi": phi / (bin_ * run.width),
+        "bin": bin_,
+    }
 
 
 def plot(run: Run, s: dict[str, np.ndarray | float], panels: int):
@@ -141,8 +171,13 @@ def main(argv: list[str] | None = None) -> int:
         parser().error(f"--panels {args.panels}: allowed 1 to 8")
 
     def body() -> int:
-        s = read_suspension(args.run)
         run = open_run(args.run)
+        if run.count < 3:
+            raise RunFileError(args.run, f"{run.count} particles; a suspension has three or "
+                                         "more (and its run file /suspension)")
+        s = read_suspension(args.run)
+        if s is None:
+            s = from_particles(run)
         if len(np.asarray(s["t"])) != len(run.t):
             raise RunFileError(args.run, "/suspension and /particles differ in length")
         if args.summary:
