@@ -11,6 +11,7 @@ suspension to the flow alone on each rank count, and what two ranks gain over on
 
     tests/perf/bench_suspension.py                          # build/dktlbm, 3 repeats, 1 and 2 ranks
     tests/perf/bench_suspension.py --steps 600 --repeats 5 --cells-per-diameter 10 --range 3
+    tests/perf/bench_suspension.py --kind sediment10k --steps 40 --ranks 2   # 10 032 disks
 """
 
 from __future__ import annotations
@@ -29,11 +30,11 @@ ROOT = Path(__file__).resolve().parents[2]
 PERFORMANCE = re.compile(r"performance:\s*([0-9.]+(?:[eE][-+]?[0-9]+)?)\s*MLUPS")
 
 
-def scenes(tmp: Path, cells: float, contact: float) -> dict[str, Path]:
+def scenes(tmp: Path, kind: str, cells: float, contact: float) -> dict[str, Path]:
     """The suspension and the same box without particles."""
     disks = tmp / "suspension.nml"
     subprocess.run(
-        [sys.executable, str(ROOT / "tools" / "suspension_scene.py"), "--kind", "sediment504",
+        [sys.executable, str(ROOT / "tools" / "suspension_scene.py"), "--kind", kind,
          "--cells-per-diameter", f"{cells:g}", "--range", f"{contact:g}", "--out", str(disks)],
         check=True, capture_output=True, text=True,
     )
@@ -57,11 +58,13 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--cells-per-diameter", type=float, default=8.0)
     parser.add_argument("--range", type=float, default=2.0, help="&collision range")
+    parser.add_argument("--kind", default="sediment504", choices=["sediment504", "sediment10k"],
+                        help="the scene of tools/suspension_scene.py (default sediment504)")
     args = parser.parse_args()
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     results: dict[tuple[str, int], list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        files = scenes(Path(tmp), args.cells_per_diameter, args.range)
+        files = scenes(Path(tmp), args.kind, args.cells_per_diameter, args.range)
         for repeat in range(args.repeats):
             for name, scene in files.items():
                 for ranks in args.ranks:
@@ -79,7 +82,7 @@ def main() -> int:
                         return 1
                     results.setdefault((name, ranks), []).append(float(match.group(1)))
     median = {key: statistics.median(values) for key, values in results.items()}
-    print(f"504 disks, {args.cells_per_diameter:g} per D, range {args.range:g}, {args.steps} "
+    print(f"{args.kind}, {args.cells_per_diameter:g} per D, range {args.range:g}, {args.steps} "
           f"steps, median of {args.repeats} interleaved runs (MLUPS)")
     print(f"{'ranks':>5} {'suspension':>11} {'flow alone':>11} {'ratio':>7}")
     for ranks in args.ranks:
