@@ -17,9 +17,10 @@
 !> loop over them (links, contacts, refills) takes them in the order one rank would.
 module dkt_particles
   use ieee_arithmetic, only: ieee_is_finite
-  use mpi_f08, only: MPI_Sendrecv, MPI_Allgather, MPI_Allgatherv, MPI_Allreduce, MPI_Bcast, &
-                     MPI_STATUS_IGNORE, MPI_INTEGER, MPI_CHARACTER, MPI_MIN, MPI_SUM, &
-                     MPI_IN_PLACE
+  use mpi_f08, only: MPI_Isend, MPI_Probe, MPI_Get_count, MPI_Recv, MPI_Waitall, MPI_Request, &
+                     MPI_Status, MPI_Allgather, MPI_Allgatherv, MPI_Allreduce, MPI_Bcast, &
+                     MPI_STATUS_IGNORE, MPI_STATUSES_IGNORE, MPI_INTEGER, MPI_CHARACTER, &
+                     MPI_MIN, MPI_SUM, MPI_IN_PLACE
   use dkt_kinds, only: wp, mpi_wp, pi, i8
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_domain, only: domain_t, domain_rows_for
@@ -53,7 +54,7 @@ module dkt_particles
   integer, parameter :: NPACK = 16
   !> per row-sum entry: particle id, global row, force x, y, torque
   integer, parameter :: NENTRY = 5
-  integer, parameter :: TAG_COUNT = 41, TAG_DOWN = 42, TAG_UP = 43
+  integer, parameter :: TAG_DOWN = 42, TAG_UP = 43
 
   !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
   !! is a lattice node outside k.
@@ -337,10 +338,7 @@ contains
         nu = nu + 1
       end if
     end do
-    call swap_counts(ps, dom, nd, nu, md, mu)
-    call fit_real(ps%rdn, NPACK*md)
-    call fit_real(ps%rup, NPACK*mu)
-    call swap_data(ps, dom, NPACK*nd, NPACK*nu, NPACK*md, NPACK*mu)
+    call swap(ps, dom, NPACK, nd, nu, md, mu)
     ! merge by id: the own particles this slab still holds, those from below, those from above
     ! (each list ascending; every particle is owned by one rank, so no id comes twice)
     call fit_particles(ps%merged, ps%n + md + mu)
@@ -449,10 +447,7 @@ contains
         end if
       end do
     end do
-    call swap_counts(ps, dom, nd, nu, md, mu)
-    call fit_real(ps%rdn, NENTRY*md)
-    call fit_real(ps%rup, NENTRY*mu)
-    call swap_data(ps, dom, NENTRY*nd, NENTRY*nu, NENTRY*md, NENTRY*mu)
+    call swap(ps, dom, NENTRY, nd, nu, md, mu)
     b = 1
     c = 1
     do k = 1, ps%n
@@ -479,34 +474,35 @@ contains
     end do
   end subroutine particles_reduce_forces
 
-  !> Send nd items to the slab below and nu to the slab above; receive md from below and mu
-  !! from above (0 at a closed or open end).
-  subroutine swap_counts(ps, dom, nd, nu, md, mu)
+  !> Send nd items of `unit` numbers (ps%sdn) to the slab below and nu (ps%sup) to the slab
+  !! above; receive md from below into ps%rdn and mu from above into ps%rup (0 at a closed or
+  !! open end). One message each way: the receiver learns its length from the message
+  !! (MPI_Probe), so no count travels first.
+  subroutine swap(ps, dom, unit, nd, nu, md, mu)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer, intent(in) :: nd, nu
+    integer, intent(in) :: unit, nd, nu
     integer, intent(out) :: md, mu
-    md = 0
-    mu = 0
-    call MPI_Sendrecv(nd, 1, MPI_INTEGER, dom%below, TAG_COUNT, mu, 1, MPI_INTEGER, dom%above, &
-                      TAG_COUNT, dom%comm, MPI_STATUS_IGNORE)
-    call MPI_Sendrecv(nu, 1, MPI_INTEGER, dom%above, TAG_COUNT, md, 1, MPI_INTEGER, dom%below, &
-                      TAG_COUNT, dom%comm, MPI_STATUS_IGNORE)
+    type(MPI_Request) :: req(2)
+    type(MPI_Status) :: st
+    integer :: n
+    call MPI_Isend(ps%sdn, unit*nd, mpi_wp, dom%below, TAG_DOWN, dom%comm, req(1))
+    call MPI_Isend(ps%sup, unit*nu, mpi_wp, dom%above, TAG_UP, dom%comm, req(2))
+    ! from above what it sent down, from below what it sent up
+    call MPI_Probe(dom%above, TAG_DOWN, dom%comm, st)
+    call MPI_Get_count(st, mpi_wp, n)
+    mu = n/unit
+    call fit_real(ps%rup, n)
+    call MPI_Recv(ps%rup, n, mpi_wp, dom%above, TAG_DOWN, dom%comm, MPI_STATUS_IGNORE)
+    call MPI_Probe(dom%below, TAG_UP, dom%comm, st)
+    call MPI_Get_count(st, mpi_wp, n)
+    md = n/unit
+    call fit_real(ps%rdn, n)
+    call MPI_Recv(ps%rdn, n, mpi_wp, dom%below, TAG_UP, dom%comm, MPI_STATUS_IGNORE)
+    call MPI_Waitall(2, req, MPI_STATUSES_IGNORE)
+    ! the messages sent (to MPI_PROC_NULL at an end: none travels)
     ps%neighbour_calls = ps%neighbour_calls + 2
-  end subroutine swap_counts
-
-  !> Send ps%sdn(1:ld) below and ps%sup(1:lu) above; receive ps%rdn(1:kd) from below,
-  !! ps%rup(1:ku) from above.
-  subroutine swap_data(ps, dom, ld, lu, kd, ku)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: ld, lu, kd, ku
-    call MPI_Sendrecv(ps%sdn, ld, mpi_wp, dom%below, TAG_DOWN, ps%rup, ku, mpi_wp, dom%above, &
-                      TAG_DOWN, dom%comm, MPI_STATUS_IGNORE)
-    call MPI_Sendrecv(ps%sup, lu, mpi_wp, dom%above, TAG_UP, ps%rdn, kd, mpi_wp, dom%below, &
-                      TAG_UP, dom%comm, MPI_STATUS_IGNORE)
-    ps%neighbour_calls = ps%neighbour_calls + 2
-  end subroutine swap_data
+  end subroutine swap
 
   !> Every particle of the scene, ascending id, on every rank: from their owners (output,
   !! checkpoints, a window that grows; not in the time loop's steps).

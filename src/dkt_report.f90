@@ -212,7 +212,7 @@ contains
     calls = particles_messages(sim%parts)
     call MPI_Allreduce(MPI_IN_PLACE, calls, 2, MPI_INTEGER8, MPI_MAX, sim%dom%comm)
     write (line, '(a,f0.2,a,f0.2,a,i0,a)') 'particle messages per step: ', &
-      real(calls(1), wp)/max(steps, 1), ' to neighbouring slabs, ', &
+      real(calls(1), wp)/max(steps, 1), ' messages to neighbouring slabs, ', &
       real(calls(2), wp)/max(steps, 1), ' collectives (the most of any rank; ', &
       sim%parts%ntotal, ' particles)'
     call log_line(trim(line))

@@ -171,7 +171,7 @@ def test_a_restart_on_another_rank_count_during_migrations_gives_the_same_bits(
 
 
 MESSAGES = re.compile(
-    r"particle messages per step: ([0-9.]+) to neighbouring slabs, "
+    r"particle messages per step: ([0-9.]+) messages to neighbouring slabs, "
     r"([0-9.]+) collectives"
 )
 
@@ -181,9 +181,9 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
     tmp_path: Path, ranks: int
 ) -> None:
     """The same box with 2 and with 36 disks: the MPI calls the particles make per step are the
-    same, 8 to neighbouring slabs (counts and data, both ways, for the states and the force
-    sums) and 3 collectives of one or two numbers (the place and speed guards, the gap of the
-    pair both scenes name); no call per particle, as there once was."""
+    same, 4 messages to neighbouring slabs (one each way for the states and one each way for
+    the force sums) and 3 collectives of one or two numbers (the place and speed guards, the
+    gap of the pair both scenes name); no call per particle, as there once was."""
     seen = []
     for columns, rows in ((2, [1.1]), (6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])):
         n = columns * len(rows)
@@ -204,7 +204,7 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
         found = MESSAGES.search(log)
         assert found, log
         seen.append((float(found[1]), float(found[2])))
-    assert seen[0] == seen[1] == (8.0, 3.0), seen
+    assert seen[0] == seen[1] == (4.0, 3.0), seen
 
 
 def test_a_suspension_follows_no_pair_unless_it_names_one(tmp_path: Path) -> None:
