@@ -28,7 +28,7 @@ module dkt_particle_links
   implicit none
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
-            particles_inner_write, particles_solid_field, particles_refill, surface_velocity
+            particles_inner_write, particles_solid_field, particles_refill
 
 contains
 

@@ -32,7 +32,7 @@ module dkt_particles
   public :: particles_t, particle_t, inner_link_t, particles_init, particles_stable_substeps, &
             particles_distribute, particles_exchange, particles_reduce_forces, particles_gather, &
             particles_resize_rows, particles_agree, particles_pair, particles_lowest_free, &
-            particles_first_above, particles_count_links, particles_reach_rows, &
+            particles_first_above, particles_reach_rows, &
             particles_messages, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, &
             BB_YU, BB_BFL
 
@@ -634,13 +634,6 @@ contains
     ps%collective_calls = ps%collective_calls + 1
     if (id == huge(0)) id = 0
   end function particles_first_above
-
-  !> The boundary links of every slab (the start-up report).
-  integer function particles_count_links(ps, dom) result(n)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    call MPI_Allreduce(ps%nlinks, n, 1, MPI_INTEGER, MPI_SUM, dom%comm)
-  end function particles_count_links
 
   !> The MPI calls the particle messages have made so far: to neighbours and collectives.
   pure function particles_messages(ps) result(calls)
