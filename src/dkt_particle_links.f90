@@ -101,12 +101,12 @@ contains
     end if
     px = i - 0.5_wp
     py = jg - 0.5_wp
-    call cells_box(ps%cells, px, py, ps%rmax, i1, i2, j1, j2)
+    call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
       is_fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
       return
     end if
-    associate (c => ps%cells)
+    associate (c => ps%ncells)
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
@@ -121,37 +121,73 @@ contains
 
   !> Place the present centres for is_fluid: in cells (a node lies only in disks whose centres
   !! are within rmax of it), and the mask of the nodes of rows 0..nyl+1 that lie inside a disk
-  !! the slab holds (a slab holds every disk that reaches a row beyond it).
+  !! the slab holds (a slab holds every disk that reaches a row beyond it). The disks of the
+  !! last placement are kept (ps%placed): when the slab and every disk are the same (the links
+  !! are found after the refill of the same step, unless the window moved) nothing is done, and
+  !! otherwise only their boxes are cleared, not the whole slab.
   subroutine place_for_nodes(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, i, j, i1, i2, j1, j2
     real(wp) :: py
-    call cells_build(ps%cells, ps%p(1:ps%n)%x, ps%p(1:ps%n)%y, 2.0_wp*ps%rmax)
     if (allocated(ps%solid)) then
       if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
         deallocate (ps%solid)
     end if
-    if (.not. allocated(ps%solid)) allocate (ps%solid(1:dom%nx, 0:dom%nyl + 1))
-    ps%solid = .false.
+    if (.not. allocated(ps%solid)) then
+      allocate (ps%solid(1:dom%nx, 0:dom%nyl + 1))
+      ps%nplaced = -1
+    end if
+    if (ps%nplaced == ps%n .and. ps%placed_y0 == dom%y0) then
+      if (all(ps%placed(1, 1:ps%n) == ps%p(1:ps%n)%x .and. &
+              ps%placed(2, 1:ps%n) == ps%p(1:ps%n)%y .and. &
+              ps%placed(3, 1:ps%n) == ps%p(1:ps%n)%r)) return
+    end if
+    if (ps%nplaced < 0 .or. ps%placed_y0 /= dom%y0) then
+      ps%solid = .false.
+    else
+      do k = 1, ps%nplaced
+        call mask_box(ps%placed(1, k), ps%placed(2, k), ps%placed(3, k), dom, i1, i2, j1, j2)
+        ps%solid(i1:i2, j1:j2) = .false.
+      end do
+    end if
+    call cells_build(ps%ncells, ps%p(1:ps%n)%x, ps%p(1:ps%n)%y, 2.0_wp*ps%rmax)
+    if (allocated(ps%placed)) then
+      if (size(ps%placed, 2) < ps%n) deallocate (ps%placed)
+    end if
+    if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
     do k = 1, ps%n
       associate (p => ps%p(k))
-        ! (a centre that is not finite lies in no node; the box is clipped before it becomes
-        ! an integer)
-        if (.not. (ieee_is_finite(p%x) .and. ieee_is_finite(p%y))) cycle
-        i1 = int(max(min(p%x - p%r, real(dom%nx + 1, wp)), 0.0_wp))
-        i2 = int(max(min(p%x + p%r, real(dom%nx, wp)), 0.0_wp)) + 1
-        j1 = int(max(min(p%y - p%r - dom%y0, real(dom%nyl + 2, wp)), -1.0_wp) + 1.0_wp) - 1
-        j2 = int(max(min(p%y + p%r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp)
-        do j = max(0, j1), min(dom%nyl + 1, j2)
+        ps%placed(:, k) = [p%x, p%y, p%r]
+        call mask_box(p%x, p%y, p%r, dom, i1, i2, j1, j2)
+        do j = j1, j2
           py = dom%y0 + j - 0.5_wp
-          do i = max(1, i1), min(dom%nx, i2)
+          do i = i1, i2
             if (inside(p, i - 0.5_wp, py)) ps%solid(i, j) = .true.
           end do
         end do
       end associate
     end do
+    ps%nplaced = ps%n
+    ps%placed_y0 = dom%y0
   end subroutine place_for_nodes
+
+  !> The nodes i1..i2, j1..j2 of the mask (rows 0..nyl+1) that a disk at (x, y) of radius r can
+  !! cover; none (i1 > i2) for a centre that is not finite (the box is clipped before it becomes
+  !! an integer).
+  pure subroutine mask_box(x, y, r, dom, i1, i2, j1, j2)
+    real(wp), intent(in) :: x, y, r
+    type(domain_t), intent(in) :: dom
+    integer, intent(out) :: i1, i2, j1, j2
+    if (.not. (ieee_is_finite(x) .and. ieee_is_finite(y))) then
+      i1 = 1; i2 = 0; j1 = 0; j2 = -1
+      return
+    end if
+    i1 = max(1, int(max(min(x - r, real(dom%nx + 1, wp)), 0.0_wp)))
+    i2 = min(dom%nx, int(max(min(x + r, real(dom%nx, wp)), 0.0_wp)) + 1)
+    j1 = max(0, int(max(min(y - r - dom%y0, real(dom%nyl + 2, wp)), -1.0_wp) + 1.0_wp) - 1)
+    j2 = min(dom%nyl + 1, int(max(min(y + r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp))
+  end subroutine mask_box
 
   !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
   !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid

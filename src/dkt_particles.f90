@@ -31,8 +31,8 @@ module dkt_particles
   private
   public :: particles_t, particle_t, inner_link_t, particles_init, particles_stable_substeps, &
             particles_distribute, particles_exchange, particles_reduce_forces, particles_gather, &
-            particles_resize_rows, particles_agree, particles_pair, particles_lowest_free, &
-            particles_first_above, particles_reach_rows, &
+            particles_resize_rows, particles_agree, particles_min, particles_lowest_free, &
+            particles_first_above, particles_first_above_own, particles_reach_rows, &
             particles_messages, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, &
             BB_YU, BB_BFL
 
@@ -79,11 +79,16 @@ module dkt_particles
     integer :: substeps_needed = 1      !! particles_stable_substeps, over every particle
     real(wp) :: rmax = 0                !! the largest radius
     real(wp) :: marg = 3                !! the reach beyond a disk within which a slab holds it
-    !> the centres in cells, for the contact forces (cells of side 2 rmax + range, the centres
-    !! at the start of the step) or for the nodes inside disks (side 2 rmax, the centres now)
+    !> the centres at the start of the step in cells of side 2 rmax + range, for the contacts
     type(cells_t) :: cells
+    !> the present centres in cells of side 2 rmax, for the nodes inside disks (place_for_nodes)
+    type(cells_t) :: ncells
     !> the nodes of rows 0..nyl+1 inside a disk (the present centres, place_for_nodes)
     logical, allocatable :: solid(:, :)
+    !> the disks (x, y, r) and the slab's first row y0 that `solid` and `ncells` were built from:
+    !! a placement of the same disks is skipped, and a new one clears only their boxes
+    integer :: nplaced = -1, placed_y0 = 0
+    real(wp), allocatable :: placed(:, :)
     ! boundary links of this slab, ordered by particle, row, column, direction
     integer :: nlinks = 0
     integer, allocatable :: lp(:), lx(:), ly(:), ld(:)  !! particle, column, local row, direction
@@ -550,50 +555,48 @@ contains
 
   !> Agree on a failure found by some ranks: the one with the lowest key (a particle's id;
   !! huge(0) for none) sends its message to every rank. `msg` is then the same everywhere.
-  subroutine particles_agree(ps, dom, key, msg)
+  !! `lowest`, when given, is the lowest key over the ranks, already reduced (particles_min).
+  subroutine particles_agree(ps, dom, key, msg, lowest)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: key
     character(len=:), allocatable, intent(inout) :: msg
-    integer :: pair(2), lowest(2), n
+    integer, intent(in), optional :: lowest
+    integer :: pair(2), least(2), n
     pair = [key, dom%rank]
     ! the lowest key, and of the ranks that have it the lowest
-    call MPI_Allreduce(pair(1), lowest(1), 1, MPI_INTEGER, MPI_MIN, dom%comm)
-    ps%collective_calls = ps%collective_calls + 1
-    if (lowest(1) == huge(0)) then
+    if (present(lowest)) then
+      least(1) = lowest
+    else
+      call MPI_Allreduce(pair(1), least(1), 1, MPI_INTEGER, MPI_MIN, dom%comm)
+      ps%collective_calls = ps%collective_calls + 1
+    end if
+    if (least(1) == huge(0)) then
       msg = ''
       return
     end if
-    if (key /= lowest(1)) pair(2) = huge(0)
-    call MPI_Allreduce(pair(2), lowest(2), 1, MPI_INTEGER, MPI_MIN, dom%comm)
+    if (key /= least(1)) pair(2) = huge(0)
+    call MPI_Allreduce(pair(2), least(2), 1, MPI_INTEGER, MPI_MIN, dom%comm)
     n = 0
-    if (dom%rank == lowest(2)) n = len(msg)
-    call MPI_Bcast(n, 1, MPI_INTEGER, lowest(2), dom%comm)
-    if (dom%rank /= lowest(2)) then
+    if (dom%rank == least(2)) n = len(msg)
+    call MPI_Bcast(n, 1, MPI_INTEGER, least(2), dom%comm)
+    if (dom%rank /= least(2)) then
       deallocate (msg)
       allocate (character(len=n) :: msg)
     end if
-    call MPI_Bcast(msg, n, MPI_CHARACTER, lowest(2), dom%comm)
+    call MPI_Bcast(msg, n, MPI_CHARACTER, least(2), dom%comm)
     ps%collective_calls = ps%collective_calls + 3
   end subroutine particles_agree
 
-  !> The centres and radii of particles a and b on every rank, from their owners (the pair
-  !! diagnostics): a sum in which only the owner's values are not zero, so the bits are its.
-  subroutine particles_pair(ps, dom, a, b, v)
+  !> The element-wise minimum of v over the ranks, in place: the one reduction a step makes for
+  !! what every rank must know of the slabs' own particles (dkt_simulation, survey_step).
+  subroutine particles_min(ps, dom, v)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer, intent(in) :: a, b
-    real(wp), intent(out) :: v(3, 2) !! x, y, r of a and of b
-    integer :: k
-    v = 0.0_wp
-    do k = 1, ps%n
-      if (ps%home(k) /= dom%rank) cycle
-      if (ps%p(k)%id == a) v(:, 1) = [ps%p(k)%x, ps%p(k)%y, ps%p(k)%r]
-      if (ps%p(k)%id == b) v(:, 2) = [ps%p(k)%x, ps%p(k)%y, ps%p(k)%r]
-    end do
-    call MPI_Allreduce(MPI_IN_PLACE, v, 6, mpi_wp, MPI_SUM, dom%comm)
+    real(wp), intent(inout) :: v(:)
+    call MPI_Allreduce(MPI_IN_PLACE, v, size(v), mpi_wp, MPI_MIN, dom%comm)
     ps%collective_calls = ps%collective_calls + 1
-  end subroutine particles_pair
+  end subroutine particles_min
 
   !> The lowest centre of a free particle (huge if none), on every rank; `finite` is false when
   !! some centre is not a finite number.
@@ -624,16 +627,24 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: top
-    integer :: k, mine
-    mine = huge(0)
-    do k = 1, ps%n
-      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p(k)%y)) cycle
-      if (ps%p(k)%y + ps%p(k)%r > top) mine = min(mine, ps%p(k)%id)
-    end do
-    call MPI_Allreduce(mine, id, 1, MPI_INTEGER, MPI_MIN, dom%comm)
+    call MPI_Allreduce(particles_first_above_own(ps, dom, top), id, 1, MPI_INTEGER, MPI_MIN, &
+                       dom%comm)
     ps%collective_calls = ps%collective_calls + 1
     if (id == huge(0)) id = 0
   end function particles_first_above
+
+  !> The lowest id of this slab's own particles whose disk reaches above `top` (huge(0) if none).
+  pure integer function particles_first_above_own(ps, dom, top) result(id)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(in) :: top
+    integer :: k
+    id = huge(0)
+    do k = 1, ps%n
+      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p(k)%y)) cycle
+      if (ps%p(k)%y + ps%p(k)%r > top) id = min(id, ps%p(k)%id)
+    end do
+  end function particles_first_above_own
 
   !> The MPI calls the particle messages have made so far: to neighbours and collectives.
   pure function particles_messages(ps) result(calls)

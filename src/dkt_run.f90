@@ -7,9 +7,8 @@ module dkt_run
   use dkt_kinds, only: wp, sp
   use dkt_errors, only: fatal_all, warn, EXIT_RUNTIME
   use dkt_config, only: config_t, lattice_params_t
-  use dkt_diagnostics, only: guard_check, guard_particle_speed
+  use dkt_diagnostics, only: guard_check
   use dkt_window, only: window_offset
-  use dkt_particles, only: particles_agree
   use dkt_log, only: log_line
   use dkt_text, only: itoa
   use dkt_timers, only: timer_reset, timer_start, timer_stop, PART_GUARDS, PART_OUTPUT, &
@@ -99,10 +98,10 @@ contains
         ! become unstable, and then the guard's diagnosis (where, what to change) is the one
         ! to give.
         ! the particle speed guard is cheap (one test per particle), so it runs every step
+        ! (simulation_step, with the place check)
         call timer_start(PART_GUARDS)
         fast = ''
-        if (sim%particles_move .and. len(failure) == 0) &
-          fast = speed_guard(sim, cfg%run%particle_speed_limit, n, t, lp%dx, y0)
+        if (sim%particles_move .and. len(failure) == 0) fast = sim%fast
         if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
             last) then
           placed = failure
@@ -176,28 +175,5 @@ contains
     call output_free(run%out)
     call simulation_finish(run%sim)
   end subroutine run_finish
-
-  !> The particle speed guard (run.particle_speed_limit) over every slab's own particles: the
-  !! failure of the lowest particle number, the same on every rank ('' if none).
-  function speed_guard(sim, limit, n, t, dx, y0) result(fast)
-    type(simulation_t), intent(inout) :: sim
-    real(wp), intent(in) :: limit, t, dx, y0
-    integer, intent(in) :: n
-    character(len=:), allocatable :: fast
-    integer :: k, id
-    fast = ''
-    id = huge(0)
-    do k = 1, sim%parts%n
-      if (sim%parts%home(k) /= sim%dom%rank) cycle
-      associate (p => sim%parts%p(k))
-        fast = guard_particle_speed([p%u], [p%v], [p%x], [p%y], limit, n, t, dx, y0, id=p%id)
-        if (len(fast) > 0) then
-          id = p%id
-          exit
-        end if
-      end associate
-    end do
-    call particles_agree(sim%parts, sim%dom, id, fast)
-  end function speed_guard
 
 end module dkt_run

@@ -11,7 +11,7 @@ module dkt_run_state
   use dkt_window, only: window_t
   use dkt_diagnostics, only: pair_diag_t
   use dkt_store, only: lattice_t
-  use dkt_kinds, only: i8
+  use dkt_kinds, only: wp, i8
   implicit none
   private
   public :: simulation_t
@@ -33,6 +33,10 @@ module dkt_run_state
     logical :: window_on = .false.
     type(pair_diag_t) :: pair       !! particles 1 and 2, when the scene has two or more
     logical :: pair_on = .false.
+    !> centre and radius of particles 1 and 2 after the last step (x, y, r; the pair diagnostics)
+    real(wp) :: pair_v(3, 2) = 0.0_wp
+    !> the particle speed guard's failure after the last step, '' if none (the same everywhere)
+    character(len=:), allocatable :: fast
     integer :: step = 0
     !> lattice-node updates this process has made (nx*ny a step, more once a window grew): the
     !! speed the progress and performance lines report

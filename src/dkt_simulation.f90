@@ -2,7 +2,7 @@
 !> (simulation_step, docs/model.md §1–2): stream-collide with the boundaries, the particles and
 !> the window. The time loop around it, with the guards and the services, is dkt_run's.
 module dkt_simulation
-  use ieee_arithmetic, only: ieee_is_finite
+  use ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
   use mpi_f08, only: MPI_Comm
   use dkt_kinds, only: wp, pi, cs2, i8
   use dkt_errors, only: fatal_all, internal_error
@@ -16,7 +16,7 @@ module dkt_simulation
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_particles, only: particles_init, particles_reduce_forces, particles_stable_substeps, &
                            particles_resize_rows, particles_reach_rows, particles_exchange, &
-                           particles_agree, particles_pair
+                           particles_agree, particles_min, particles_first_above_own
   use dkt_particle_links, only: particles_find_links, particles_bounce, particles_interior, &
                                 particles_inner_save, particles_inner_write
   use dkt_particle_motion, only: particles_move
@@ -25,13 +25,16 @@ module dkt_simulation
                          BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
                          STREAMING_IN_PLACE, MOMENTUM_GALILEAN, INTERIOR_FLUID, FLOW_REST, &
                          FLOW_TAYLOR_GREEN
-  use dkt_diagnostics, only: guard_set_advice, pair_diag_init, pair_diag_update, pair_gaps
-  use dkt_window, only: window_init, window_offset, window_follow, window_escaped
+  use dkt_diagnostics, only: guard_set_advice, guard_particle_speed, pair_diag_init, &
+                             pair_diag_update, pair_gaps
+  use dkt_window, only: window_init, window_offset, window_follow, window_escaped, &
+                        window_escape_line
   use dkt_log, only: log_line, log_close
   use dkt_memory, only: check_memory
   use dkt_text, only: itoa, fmt_real
   use dkt_run_state, only: simulation_t
-  use dkt_timers, only: timer_start, timer_stop, PART_FLOW, PART_LINKS, PART_PARTICLES, PART_WINDOW
+  use dkt_timers, only: timer_start, timer_stop, PART_FLOW, PART_LINKS, PART_PARTICLES, &
+                        PART_WINDOW, PART_GUARDS
   implicit none
   private
   public :: simulation_t, simulation_setup, simulation_step, simulation_finish, simulation_grow
@@ -119,6 +122,7 @@ contains
     sim%pair_on = lp%pair_on
     if (sim%pair_on) call pair_diag_init(sim%pair, lp%kiss_enter, lp%kiss_release)
     sim%stopped_early = ''
+    sim%fast = ''
   end subroutine simulation_setup
 
   !> The particles of the scene in lattice units (docs/model.md §3–4), their first boundary links
@@ -345,10 +349,12 @@ contains
     call particles_move(sim%parts, sim%dom, sim%f_next, ends_at_rest(sim), sim%particles_move)
     call timer_stop(PART_PARTICLES)
     call timer_start(PART_WINDOW)
-    if (sim%window_on) call follow_particles(sim, n)
+    if (sim%window_on) call follow_particles(sim)
     call timer_stop(PART_WINDOW)
+    call timer_start(PART_GUARDS)
+    call survey_step(sim, n, failure)
+    call timer_stop(PART_GUARDS)
     call timer_start(PART_LINKS)
-    if (sim%particles_move) call check_particle_places(sim, n, failure)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
     if (sim%particles_move .and. len(failure) == 0) call particles_find_links(sim%parts, sim%dom)
     call timer_stop(PART_LINKS)
@@ -399,17 +405,18 @@ contains
   !! radius (a free particle normally makes way; one pinned against a wall cannot), or a free
   !! particle came within collision.range (at least a spacing) of an open or moving end (no E11
   !! holds it there, and the flow through the end would blow up around it; docs/model.md §4).
-  !! The input
-  !! check refuses what a constant prescribed velocity makes predictable; this catches what it
-  !! cannot (a moving window, free particles). Each owner checks its own particles; the failure
-  !! of the lowest particle number goes to every rank (particles_agree), so every rank returns
-  !! the same failure at the same step and the loop stops them together.
-  subroutine check_particle_places(sim, n, failure)
-    type(simulation_t), intent(inout) :: sim
+  !! The input check refuses what a constant prescribed velocity makes predictable; this
+  !! catches what it cannot (a moving window, free particles). Each owner checks its own
+  !! particles, here for the first failing one of this slab; survey_step finds the lowest
+  !! particle number over the slabs and sends its message to every rank, so every rank stops
+  !! with the same failure at the same step.
+  subroutine check_particle_places(sim, n, id, failure)
+    type(simulation_t), intent(in) :: sim
     integer, intent(in) :: n
-    character(len=:), allocatable, intent(out) :: failure
+    integer, intent(out) :: id !! the failing particle of this slab, huge(0) if none
+    character(len=:), allocatable, intent(out) :: failure !! why, on the rank that owns it
     real(wp) :: nx, ny, y0, dist, reach, near
-    integer :: k, m, id
+    integer :: k, m
     character(len=:), allocatable :: what, advice
     character(len=160) :: where
     logical :: walls_x, wall_lo, wall_hi, open_lo, open_hi
@@ -478,7 +485,6 @@ contains
                 '; the run stops. '//advice//', or end the run earlier'
       exit
     end do
-    call particles_agree(sim%parts, sim%dom, id, failure)
   contains
     !> 'its surface came within .. spacings of the lower end (an open end, ...)'
     function open_end(which, kind) result(s)
@@ -502,23 +508,123 @@ contains
     end function quoted_motion
   end subroutine check_particle_places
 
-  !> docs/model.md §5: move the window (the new populations in f_next) with the lowest particle; a
-  !! particle near the upper end grows the window (window.max_above) while it may, else (the
-  !! pair has separated by more than the window holds) ends the run after this step.
-  subroutine follow_particles(sim, n)
+  !> docs/model.md §5: move the window (the new populations in f_next) with the lowest particle.
+  !! A particle near its upper end is found by survey_step, which grows it (grow_window).
+  subroutine follow_particles(sim)
     type(simulation_t), intent(inout) :: sim
-    integer, intent(in) :: n
-    integer :: k
-    character(len=400) :: msg
-    character(len=:), allocatable :: key, why
-    real(wp) :: limit
     integer :: shift
     shift = sim%win%shift
     call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
     ! the particles moved up with the rows: some may now belong to, or reach, another slab
     if (sim%win%shift /= shift .and. sim%particles_move) &
       call particles_exchange(sim%parts, sim%dom)
-    k = window_escaped(sim%win, sim%dom, sim%parts, sim%lp%ny)
+  end subroutine follow_particles
+
+  !> What every rank must know of the slabs' own particles after a step, found in one reduction
+  !! (particles_min; docs/design.md, "Particles across slabs"): the first particle past the
+  !! window's margin, the first out of place (check_particle_places), the first faster than
+  !! run.particle_speed_limit (sim%fast), and the centres of particles 1 and 2 (sim%pair_v, the
+  !! pair diagnostics). "First" is the lowest particle number, so the answer is that of one rank.
+  !! A failure's message then comes from the rank that owns the particle (particles_agree). A
+  !! window that grows (grow_window) changes the lattice the places are judged on: they are
+  !! judged again after it.
+  subroutine survey_step(sim, n, failure)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    character(len=:), allocatable, intent(out) :: failure
+    ! the entries of the reduction: ids (exact in 8 bytes), a flag, the pair's x, y, r
+    integer, parameter :: S_ESCAPE = 1, S_PLACE = 2, S_FAST = 3, S_FINITE = 4, S_PAIR = 5
+    real(wp) :: v(S_PAIR + 5)
+    integer :: k, m, escaped, place_id, fast_id
+    failure = ''
+    sim%fast = ''
+    if (.not. (sim%particles_move .or. sim%pair_on .or. sim%window_on)) return
+    escaped = huge(0)
+    place_id = huge(0)
+    fast_id = huge(0)
+    if (sim%window_on) escaped = particles_first_above_own(sim%parts, sim%dom, &
+                                                           window_escape_line(sim%win, sim%lp%ny))
+    if (sim%particles_move) then
+      call check_particle_places(sim, n, place_id, failure)
+      call check_particle_speeds(sim, n, fast_id, sim%fast)
+    end if
+    v = huge(1.0_wp)
+    v(S_ESCAPE:S_FAST) = real([escaped, place_id, fast_id], wp)
+    v(S_FINITE) = 1.0_wp
+    if (sim%pair_on) then
+      ! particles 1 and 2 from their owners (the held particles are in ascending id)
+      do k = 1, sim%parts%n
+        if (sim%parts%p(k)%id > 2) exit
+        if (sim%parts%home(k) /= sim%dom%rank) cycle
+        associate (p => sim%parts%p(k))
+          m = S_PAIR + 3*(p%id - 1)
+          v(m:m + 2) = [p%x, p%y, p%r]
+          ! (a minimum with NaN depends on the order of the ranks: a flag carries it)
+          if (.not. all(ieee_is_finite(v(m:m + 2)))) v(S_FINITE) = 0.0_wp
+        end associate
+      end do
+    end if
+    call particles_min(sim%parts, sim%dom, v)
+    if (sim%pair_on) then
+      sim%pair_v = reshape(v(S_PAIR:S_PAIR + 5), [3, 2])
+      if (v(S_FINITE) < 1.0_wp) sim%pair_v = ieee_value(1.0_wp, ieee_quiet_nan)
+    end if
+    escaped = nint(v(S_ESCAPE))
+    if (sim%window_on .and. escaped /= huge(0)) then
+      call grow_window(sim, n, escaped)
+      if (sim%particles_move) then
+        ! the places on the grown lattice (the window's growth is rare: a reduction of its own)
+        call check_particle_places(sim, n, place_id, failure)
+        call particles_agree(sim%parts, sim%dom, place_id, failure)
+      end if
+    else if (sim%particles_move) then
+      call particles_agree(sim%parts, sim%dom, place_id, failure, lowest=nint(v(S_PLACE)))
+    end if
+    ! the speed guard speaks only when every particle is in place
+    if (sim%particles_move .and. len(failure) == 0) then
+      call particles_agree(sim%parts, sim%dom, fast_id, sim%fast, lowest=nint(v(S_FAST)))
+    else
+      sim%fast = ''
+    end if
+  end subroutine survey_step
+
+  !> The particle speed guard (run.particle_speed_limit) over this slab's own particles: the
+  !! first that fails, huge(0) and '' if none.
+  subroutine check_particle_speeds(sim, n, id, fast)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: n
+    integer, intent(out) :: id
+    character(len=:), allocatable, intent(out) :: fast
+    real(wp) :: y0
+    integer :: k
+    fast = ''
+    id = huge(0)
+    y0 = 0.0_wp
+    if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
+    do k = 1, sim%parts%n
+      if (sim%parts%home(k) /= sim%dom%rank) cycle
+      associate (p => sim%parts%p(k))
+        fast = guard_particle_speed([p%u], [p%v], [p%x], [p%y], &
+                                    sim%cfg%run%particle_speed_limit, n, n*sim%lp%dt, &
+                                    sim%lp%dx, y0, id=p%id)
+        if (len(fast) > 0) then
+          id = p%id
+          exit
+        end if
+      end associate
+    end do
+  end subroutine check_particle_speeds
+
+  !> A particle (the first by number, `k`) came within window.margin of the window's upper
+  !! end: the window grows while it can (window.max_above), or the run ends after this step
+  !! (sim%stopped_early says why).
+  subroutine grow_window(sim, n, k)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    integer, intent(inout) :: k
+    character(len=400) :: msg
+    character(len=:), allocatable :: key, why
+    real(wp) :: limit
     do while (k > 0 .and. sim%lp%ny < sim%lp%ny_max)
       call simulation_grow(sim, min(sim%lp%ny_max, sim%lp%ny + sim%lp%grow_rows))
       write (msg, '(a,i0,a,f0.2,a,i0,a,i0,a)') 'window grown to ', sim%lp%ny, ' rows (above = ', &
@@ -543,7 +649,7 @@ contains
         'here. Raise window.'//key//' to follow them further'
       sim%stopped_early = trim(msg)
     end if
-  end subroutine follow_particles
+  end subroutine grow_window
 
   !> The window's length (D_1) above the mark window.below D_1 over its lower end, where it
   !! holds the lowest free centre: window.above, more once it has grown.
@@ -601,10 +707,11 @@ contains
   subroutine pair_sample(sim, n)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: n
-    real(wp) :: gx, gy, gr, v(3, 2)
-    ! particles 1 and 2 from their owners
-    call particles_pair(sim%parts, sim%dom, 1, 2, v)
-    call pair_gaps(v(1, 1), v(2, 1), v(3, 1), v(1, 2), v(2, 2), v(3, 2), gx, gy, gr)
+    real(wp) :: gx, gy, gr
+    ! particles 1 and 2 from their owners (survey_step)
+    associate (v => sim%pair_v)
+      call pair_gaps(v(1, 1), v(2, 1), v(3, 1), v(1, 2), v(2, 2), v(3, 2), gx, gy, gr)
+    end associate
     call pair_diag_update(sim%pair, n*sim%lp%dt, gr)
   end subroutine pair_sample
 

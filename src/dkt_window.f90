@@ -18,7 +18,8 @@ module dkt_window
   use dkt_particles, only: particles_t, particles_lowest_free, particles_first_above
   implicit none
   private
-  public :: window_t, window_init, window_offset, window_follow, window_escaped
+  public :: window_t, window_init, window_offset, window_follow, window_escaped, &
+            window_escape_line
 
   integer, parameter :: TAG_SHIFT = 21
 
@@ -84,8 +85,15 @@ contains
     type(domain_t), intent(in) :: dom
     type(particles_t), intent(inout) :: ps
     integer, intent(in) :: ny !! rows of the lattice
-    k = particles_first_above(ps, dom, real(ny, wp) - win%margin)
+    k = particles_first_above(ps, dom, window_escape_line(win, ny))
   end function window_escaped
+
+  !> The height (lattice units) above which a disk's top has escaped a window of ny rows.
+  pure real(wp) function window_escape_line(win, ny) result(top)
+    type(window_t), intent(in) :: win
+    integer, intent(in) :: ny
+    top = real(ny, wp) - win%margin
+  end function window_escape_line
 
   !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of
   !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest. The message

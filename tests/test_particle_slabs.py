@@ -182,8 +182,9 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
 ) -> None:
     """The same box with 2 and with 36 disks: the MPI calls the particles make per step are the
     same, 4 messages to neighbouring slabs (one each way for the states and one each way for
-    the force sums) and 3 collectives of one or two numbers (the place and speed guards, the
-    gap of the pair both scenes name); no call per particle, as there once was."""
+    the force sums) and 1 collective, a reduction of ten numbers that holds the place and speed
+    guards and the centres of the pair both scenes name; no call per particle, as there once
+    was, and no reduction per guard."""
     seen = []
     for columns, rows in ((2, [1.1]), (6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])):
         n = columns * len(rows)
@@ -204,7 +205,24 @@ def test_particle_messages_per_step_do_not_grow_with_the_number_of_disks(
         found = MESSAGES.search(log)
         assert found, log
         seen.append((float(found[1]), float(found[2])))
-    assert seen[0] == seen[1] == (4.0, 3.0), seen
+    assert seen[0] == seen[1] == (4.0, 1.0), seen
+
+
+@pytest.mark.parametrize("ranks", [1, 3])
+def test_a_window_adds_one_reduction_per_step(tmp_path: Path, ranks: int) -> None:
+    """case1 follows its pair with a window: to the 4 neighbour messages and the one reduction of
+    the guards and the pair, the window adds one reduction, the lowest free centre that decides
+    its shift (the place checks are made on the shifted lattice, so the two cannot be one)."""
+    log = launch(
+        ROOT / "input" / "case1.nml",
+        ranks,
+        tmp_path / "run",
+        ["--set", "lbm.cells_per_diameter=8", "--set", "run.steps=60",
+         "--set", "run.checkpoint_every=0"],
+    )
+    found = MESSAGES.search(log)
+    assert found, log
+    assert (float(found[1]), float(found[2])) == (4.0, 2.0), found[0]
 
 
 def test_a_suspension_follows_no_pair_unless_it_names_one(tmp_path: Path) -> None:
