@@ -11,12 +11,12 @@ module dkt_io_reopen
   use hdf5, only: hid_t, hsize_t, size_t, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5lexists_f, &
                   h5gn_members_f, h5gget_obj_info_idx_f, H5G_DATASET_F, H5G_GROUP_F, &
                   h5ldelete_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dset_extent_f, &
-                  h5dget_type_f, h5sclose_f, h5sget_simple_extent_dims_f, &
+                  h5dget_type_f, h5dread_f, h5sclose_f, h5sget_simple_extent_dims_f, &
                   h5sget_simple_extent_ndims_f, h5tget_class_f, h5tget_size_f, h5tclose_f, &
                   H5T_INTEGER_F, h5oopen_f, h5oclose_f, h5aopen_f, h5aread_f, h5aclose_f
   implicit none
   private
-  public :: io_reopen
+  public :: io_reopen, io_read_series
 
   !> the attributes of /diagnostics that say a run finished (dkt_output output_pair_report):
   !! a continued run removes them until it finishes in its turn
@@ -252,6 +252,30 @@ contains
     n = io%ny
     if (nd == 2) n = int(dims(2))
   end function field_rows
+
+  !> Every value of the real series dataset `path` of the open run file: values(w, s) is value
+  !! w of sample s (w = 1 for a 1-D series, the particle or column of a 2-D one). Every rank
+  !! reads it (independently); a restart rebuilds the CSV file from it.
+  subroutine io_read_series(io, path, values)
+    type(io_t), intent(in) :: io
+    character(len=*), intent(in) :: path
+    real(wp), allocatable, intent(out) :: values(:, :)
+    integer(hid_t) :: dset
+    integer(hsize_t) :: dims(2), shp(2)
+    integer :: nd, hdferr
+    call h5dopen_f(io%file_id, path, dset, hdferr)
+    call check(hdferr, 'h5dopen_f('//path//')', io%path)
+    call extent(io, dset, path, nd, dims)
+    shp = [1_hsize_t, dims(1)]
+    if (nd == 2) shp = dims
+    allocate (values(shp(1), shp(2)))
+    if (size(values) > 0) then
+      call h5dread_f(dset, io%real_type, values, shp, hdferr)
+      call check(hdferr, 'h5dread_f('//path//')', io%path)
+    end if
+    call h5dclose_f(dset, hdferr)
+    call check(hdferr, 'h5dclose_f('//path//')', io%path)
+  end subroutine io_read_series
 
   !> Length of the 1-D dataset `path`.
   integer function dataset_length(io, path) result(n)

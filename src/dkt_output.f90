@@ -15,7 +15,8 @@ module dkt_output
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
-                    io_write_table, io_write_attribute, io_reopen, io_flush, io_set_rows
+                    io_write_table, io_write_attribute, io_reopen, io_flush, io_set_rows, &
+                    io_read_series
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
@@ -34,6 +35,10 @@ module dkt_output
   integer, parameter :: MAX_MPIIO_PATH = 240
   !> the longest namelist io_write_run stores as the attribute /run namelist (dkt_io)
   integer, parameter :: NAMELIST_ATTRIBUTE_MAX = 32768
+  !> the columns of the pair's CSV file (csv_row)
+  character(len=*), parameter :: CSV_HEADER = 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,'// &
+                                 'cd_2,x_1,y_1,x_2,y_2,u_1,v_1,u_2,v_2,'// &
+                                 'omega_1,omega_2'
 
   !> output fields and their units; in a scene with particles also the integer field
   !! `particle` (written by io_write_fields), in this order
@@ -159,12 +164,13 @@ contains
                                        out%restart_from//': '//err)
       out%io%compress = sim%cfg%output%compress
       out%file_open = .true.
+      ! the file was cut back: it describes a run going on from here, whatever follows
+      call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+      if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
       call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
       if (len(err) > 0) call fatal_local(err)
-      if (sim%pair_on .and. sim%dom%rank == 0) call reopen_csv(dir//'/'//sim%cfg%name// &
-                                                               '_diagnostics.csv')
-      if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
-      call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+      ! the CSV file is written anew from the run file, which holds every value it has
+      if (sim%pair_on) call rebuild_csv(out, sim, dir//'/'//sim%cfg%name//'_diagnostics.csv')
       if (allocated(out%restart_changes)) call record_restart_changes(out, sim)
       return
     end if
@@ -209,8 +215,7 @@ contains
             status='replace', action='write', iostat=ios, iomsg=msg)
       if (ios /= 0) call fatal_local(trim(msg))
       out%csv_open = .true.
-      write (out%csv_unit, '(a)') 't,tstar,dx,dy,dr,dr_star,re_1,re_2,cd_1,cd_2,x_1,y_1,x_2,'// &
-        'y_2,u_1,v_1,u_2,v_2,omega_1,omega_2'
+      write (out%csv_unit, '(a)') CSV_HEADER
     end if
   contains
     !> The scales and thresholds the run uses, as /run attributes, so that readers of the
@@ -249,29 +254,50 @@ contains
       call write_quantity(out%io, '/run', name, value, unit)
     end subroutine put
 
-    !> Keep the header and the first `samples` rows of the CSV file, then append to it.
-    subroutine reopen_csv(path)
-      character(len=*), intent(in) :: path
-      character(len=2048), allocatable :: rows(:)
-      integer :: u, k
-      allocate (rows(out%samples + 1))
-      open (newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=msg)
-      if (ios /= 0) call fatal_local('--restart: cannot read '//path//': '//trim(msg))
-      do k = 1, out%samples + 1
-        read (u, '(a)', iostat=ios) rows(k)
-        if (ios /= 0) call fatal_local('--restart: '//path//' has fewer rows than the '// &
-                                       'checkpoint''s samples')
-      end do
-      close (u)
-      open (newunit=out%csv_unit, file=path, status='replace', action='write', iostat=ios, &
-            iomsg=msg)
-      if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
-      do k = 1, out%samples + 1
-        write (out%csv_unit, '(a)') trim(rows(k))
-      end do
-      out%csv_open = .true.
-    end subroutine reopen_csv
   end subroutine output_open
+
+  !> The CSV file of the pair (rank 0 writes it) from the run file cut back to the
+  !! checkpoint: /diagnostics and particles 1 and 2 of /particles hold every value of its
+  !! rows, so the rows are those the run wrote, whatever became of the file (removed,
+  !! emptied, cut short, another run's).
+  subroutine rebuild_csv(out, sim, path)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    character(len=*), intent(in) :: path
+    character(len=7), parameter :: SERIES(6) = &
+                                   [character(len=7) :: 't', 'tstar', 'dx', 'dy', 'dr', 'dr_star']
+    character(len=7), parameter :: PARTS(5) = &
+                                   [character(len=7) :: 'x', 'y', 'u', 'v', 'omega']
+    real(wp), allocatable :: d(:, :), re(:, :), cd(:, :), q(:, :), ps(:, :, :)
+    character(len=256) :: msg
+    integer :: k, n, ios
+    n = out%samples
+    allocate (d(6, n), ps(2, 5, n))
+    do k = 1, 6
+      call io_read_series(out%io, 'diagnostics/'//trim(SERIES(k)), q)
+      d(k, :) = q(1, 1:n)
+    end do
+    call io_read_series(out%io, 'diagnostics/re', re)
+    call io_read_series(out%io, 'diagnostics/cd', cd)
+    do k = 1, 5
+      call io_read_series(out%io, 'particles/'//trim(PARTS(k)), q)
+      ps(:, k, :) = q(1:2, 1:n)
+    end do
+    if (sim%dom%rank /= 0) return
+    open (newunit=out%csv_unit, file=path, status='replace', action='write', iostat=ios, &
+          iomsg=msg)
+    if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg))
+    out%csv_open = .true.
+    write (out%csv_unit, '(a)', iostat=ios, iomsg=msg) CSV_HEADER
+    do k = 1, n
+      if (ios /= 0) exit
+      write (out%csv_unit, '(a)', iostat=ios, iomsg=msg) &
+        csv_row(d(:, k), re(:, k), cd(:, k), ps(:, :, k))
+    end do
+    if (ios == 0) flush (out%csv_unit, iostat=ios, iomsg=msg)
+    if (ios /= 0) call fatal_local('--restart: cannot write '//path//': '//trim(msg)// &
+                                   '; is the disk full?')
+  end subroutine rebuild_csv
 
   !> The input changes run.restart_changes allowed on resuming: the /run string attribute
   !! restart_changes_step_<step, 9 digits> = 'group.key old -> new; ...' (one per restart that
@@ -499,6 +525,17 @@ contains
     end associate
   end subroutine write_suspension
 
+  !> A row of the CSV file: the six pair series (t, t*, the gaps), Re and C_d of particles 1 and
+  !! 2, then for particles 1 and 2 (p(k, :)) x, y, u, v and omega, in the order of CSV_HEADER.
+  pure function csv_row(series, re, cd, p) result(row)
+    real(wp), intent(in) :: series(6), re(2), cd(2), p(2, 5)
+    character(len=:), allocatable :: row
+    character(len=1024) :: buf
+    write (buf, '(*(es24.16e3,:,","))') series, re, cd, p(1, 1:2), p(2, 1:2), p(1, 3:4), &
+      p(2, 3:4), p(1, 5), p(2, 5)
+    row = trim(buf)
+  end function csv_row
+
   !> One sample of /diagnostics (docs/model.md §6) and of the CSV file, from the particle sample `v`
   !! (particle, quantity) in physical units as written to /particles.
   subroutine write_pair(out, sim, n, v)
@@ -508,7 +545,6 @@ contains
     real(wp), intent(in) :: v(:, :)
     real(wp) :: t, gx, gy, gr, d(2), re(2), cd(2), rho_f, mu
     character(len=7) :: names(6)
-    character(len=1024) :: row
     character(len=256) :: msg
     integer :: k, ios
     t = n*sim%lp%dt
@@ -527,9 +563,9 @@ contains
     call io_write_table(out%io, 'diagnostics', ['re', 'cd'], reshape([re, cd], [2, 2]), &
                         ['1', '1'])
     if (out%csv_open) then
-      write (row, '(*(es24.16e3,:,","))') t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d), &
-        re, cd, v(1, 1:2), v(2, 1:2), v(1, 3:4), v(2, 3:4), v(1, 5), v(2, 5)
-      write (out%csv_unit, '(a)', iostat=ios, iomsg=msg) trim(row)
+      write (out%csv_unit, '(a)', iostat=ios, iomsg=msg) &
+        csv_row([t, t/sim%cfg%run%t_ref, gx, gy, gr, gr/maxval(d)], re, cd, &
+                v(1:2, 1:5))
       ! kept on disk row by row: a rank that aborts the job must not take the series with it
       if (ios == 0) flush (out%csv_unit, iostat=ios, iomsg=msg)
       ! rank 0 alone writes it: it ends the job (a full disk)

@@ -226,3 +226,46 @@ def test_extending_a_finished_run_repeats_no_sample(reference: Path, tmp_path: P
     csv_a = (whole / "case1_diagnostics.csv").read_text()
     csv_b = (out / "case1_diagnostics.csv").read_text()
     assert csv_a == csv_b
+
+
+def spoil_csv(how: str) -> Callable[[Path], None]:
+    """What can become of the pair's CSV file between a run and its restart."""
+
+    def spoil(path: Path) -> None:
+        if how == "missing":
+            path.unlink()
+        elif how == "empty":
+            path.write_text("")
+        elif how == "short":
+            path.write_text("".join(path.read_text().splitlines(keepends=True)[:3]))
+        else:  # another run's rows, or garbage
+            path.write_text("t,tstar\n1,2\nnot,a,row\n")
+
+    return spoil
+
+
+@pytest.mark.parametrize("how", ["missing", "empty", "short", "garbage"])
+def test_a_restart_rebuilds_the_csv_from_the_run_file(
+    reference: Path, tmp_path: Path, how: str
+) -> None:
+    """The CSV file of the pair removed, emptied, cut short or replaced before a restart: the
+    restart rebuilds it from the run file (/diagnostics and /particles hold every value of its
+    rows) and the finished run's CSV and run file are those of the run that went through at
+    once, bit for bit. Before, the restart cut the run file back (/particles from 44 to 21
+    samples, a snapshot and the pattern gone, stop_reason still `finished`) and then aborted on
+    the missing CSV."""
+    out = tmp_path / "run"
+    shutil.copytree(reference, out)
+    spoil_csv(how)(out / "case1_diagnostics.csv")
+    proc = resume(out, out / HALF, STEPS)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (out / "case1_diagnostics.csv").read_text() == (
+        reference / "case1_diagnostics.csv"
+    ).read_text()
+    with h5py.File(reference / "case1.h5") as a, h5py.File(out / "case1.h5") as b:
+        for group in ("particles", "diagnostics"):
+            for name, d in a[group].items():
+                if isinstance(d, h5py.Dataset):
+                    assert np.array_equal(d[()], b[group][name][()], equal_nan=True), name
+        assert a["diagnostics"].attrs["pattern"] == b["diagnostics"].attrs["pattern"]
+        assert b["run"].attrs["stop_reason"] == "finished"
