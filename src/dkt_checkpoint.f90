@@ -9,6 +9,8 @@
 !> - /particles (h5py (n, 10)): x, y, u, v, omega, fx, fy, torque, cx, cy in lattice units;
 !> - /episodes (h5py (3, n_episodes)): start, end and smallest gap of the episodes so far;
 !> - /given: the input as read, as character codes, for the record;
+!> - /run_id: the identity of the run file the run writes (its /run run_id), so that a restart
+!>   refuses to continue another run's file; absent in checkpoints of earlier versions;
 !> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
 !>   in 4 bytes), 2 'single_unshifted', 3 'single_arith' (stored as 1, collided in 4 bytes: a
 !>   resume across 1 and 3 is refused, it would not continue bit for bit); absent in checkpoints
@@ -72,6 +74,8 @@ module dkt_checkpoint
     logical :: checksums = .false. !! its values were checked against stored digests
     !> the input of the run that wrote it (/given), read back; '' when the file has none
     character(len=:), allocatable :: given
+    !> the identity of the run file the run wrote (/run_id; 0 in a file of an earlier version)
+    real(wp) :: run_id = 0.0_wp
   end type checkpoint_t
 
 contains
@@ -135,6 +139,8 @@ contains
                      [integer(hsize_t) :: 0, y0, 0], [integer(hsize_t) :: nx, nyl, 9], buf, .true.)
     call io_put_real(pf, 'state_real', [integer(hsize_t) :: 2], [integer(hsize_t) :: 0], &
                      [integer(hsize_t) :: 2], [chk%dx, chk%dt], rank == 0)
+    call io_put_real(pf, 'run_id', [integer(hsize_t) :: 1], [integer(hsize_t) :: 0], &
+                     [integer(hsize_t) :: 1], [chk%run_id], rank == 0)
     ne = size(chk%t_start)
     call io_put_int(pf, 'state_int', [chk%step, chk%shift, chk%samples, chk%nx, chk%ny, &
                                       size(chk%particles, 2), ne, merge(1, 0, chk%in_episode), &
@@ -441,6 +447,7 @@ contains
     integer :: ne, nd
     integer(hsize_t) :: dims(3)
     logical :: has_given
+    real(wp) :: id(1)
 
     ne = ints(7)
     allocate (chk%particles(NSTATE, chk%np), ep(ne, 3), codes(max(1, ints(9))))
@@ -448,6 +455,11 @@ contains
                                      [integer(hsize_t) :: NSTATE, chk%np], chk%particles)
     if (ne > 0) call io_get_real(pf, 'episodes', [integer(hsize_t) :: 0, 0], &
                                  [integer(hsize_t) :: ne, 3], ep)
+    call io_dataset_dims(pf, 'run_id', nd, dims)
+    if (nd == 1 .and. dims(1) == 1) then
+      call io_get_real(pf, 'run_id', [0_hsize_t], [1_hsize_t], id)
+      chk%run_id = id(1)
+    end if
     codes = 32
     call io_dataset_dims(pf, 'given', nd, dims)
     ! a checkpoint without digests may still hold its input

@@ -18,10 +18,10 @@ module dkt_checkpoint_policy
   use dkt_text, only: itoa
   use dkt_run_state, only: simulation_t
   use dkt_simulation, only: simulation_grow
-  use dkt_restart_check, only: restart_problem
+  use dkt_restart_check, only: restart_problem, run_file_problem
   use dkt_store, only: lattice_precision_name
   use dkt_output, only: output_t, output_fail, output_resume, output_set_stop_reason, &
-                        output_flush, output_samples
+                        output_flush, output_samples, output_run_id
   implicit none
   private
   public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
@@ -224,6 +224,9 @@ contains
     end if
     ! the physics of its input (a lattice of other sizes was refused above with its sizes)
     call input_check(sim%cfg, chk%given, path, changes)
+    ! the run file it continues is the one its run wrote, not another run's file
+    err = run_file_problem(sim, chk)
+    if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': '//err)
     ! its values against the scene and the run file, before anything is cut or overwritten
     err = restart_problem(sim, chk, path)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '//path//': restart '// &
@@ -292,6 +295,7 @@ contains
     chk%ny = sim%lp%ny
     chk%dx = sim%lp%dx
     chk%dt = sim%lp%dt
+    chk%run_id = output_run_id(out)
     allocate (chk%particles(NSTATE, merge(sim%parts%ntotal, 0, sim%particles_on)))
     if (sim%particles_on) call particles_gather(sim%parts, sim%dom, all)
     do k = 1, size(chk%particles, 2)

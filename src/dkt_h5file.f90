@@ -15,11 +15,12 @@ module dkt_h5file
                   H5FD_MPIO_COLLECTIVE_F, H5FD_MPIO_INDEPENDENT_F, h5eset_auto_f, h5lexists_f, &
                   h5screate_simple_f, h5sclose_f, h5sselect_hyperslab_f, h5sselect_none_f, &
                   h5sget_simple_extent_dims_f, h5sget_simple_extent_ndims_f, H5S_SELECT_SET_F, &
-                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dread_f, h5dget_space_f
+                  h5dcreate_f, h5dopen_f, h5dclose_f, h5dwrite_f, h5dread_f, h5dget_space_f, &
+                  h5aexists_by_name_f, h5aopen_by_name_f, h5aread_f, h5aclose_f
   implicit none
   private
   public :: io_file_open, io_file_close, io_put_real, io_put_int, io_get_real, io_get_int, &
-            io_dataset_dims
+            io_dataset_dims, io_file_attribute, h5_real_attribute
   public :: h5_library_open, h5_file_opened, h5_file_closed
 
   !! and io_file_close reports it.
@@ -172,6 +173,40 @@ contains
     character(len=*), intent(in) :: what
     if (hdferr < 0 .and. len(pf%failed) == 0) pf%failed = what
   end subroutine note
+
+  !> The real attribute `aname` of the object at `obj` (a path) in the open HDF5 file
+  !! `file_id`, read by this rank alone; found = .false. when there is none or it is not a number.
+  subroutine h5_real_attribute(file_id, obj, aname, value, found)
+    integer(hid_t), intent(in) :: file_id
+    character(len=*), intent(in) :: obj, aname
+    real(wp), intent(out) :: value
+    logical, intent(out) :: found
+    integer(hid_t) :: attr
+    integer :: hdferr, e
+    value = 0.0_wp
+    call h5aexists_by_name_f(file_id, obj, aname, found, hdferr)
+    if (hdferr < 0 .or. .not. found) then
+      found = .false.
+      return
+    end if
+    call h5aopen_by_name_f(file_id, obj, aname, attr, hdferr)
+    if (hdferr < 0) then
+      found = .false.
+      return
+    end if
+    call h5aread_f(attr, h5kind_to_type(wp, H5_REAL_KIND), value, one, hdferr)
+    found = hdferr >= 0
+    call h5aclose_f(attr, e)
+  end subroutine h5_real_attribute
+
+  !> The real attribute `aname` of the object `obj` of the plain file `pf`, as h5_real_attribute.
+  subroutine io_file_attribute(pf, obj, aname, value, found)
+    type(io_file_t), intent(in) :: pf
+    character(len=*), intent(in) :: obj, aname
+    real(wp), intent(out) :: value
+    logical, intent(out) :: found
+    call h5_real_attribute(pf%file_id, obj, aname, value, found)
+  end subroutine io_file_attribute
 
   !> The dimensions of dataset `name` in Fortran order (h5py's reversed): ndims = -1 when there
   !! is no such dataset or its shape cannot be read (a damaged file).

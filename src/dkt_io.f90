@@ -33,12 +33,12 @@ module dkt_io
   use dkt_run_file, only: io_t, io_close, io_flush, io_file_exists, run_file_open, require_open, &
                           check, field_group, find_pending, hold_rows, flush_pending, &
                           open_object, put_attr, one, delete_attribute
-  use dkt_io_reopen, only: io_reopen, io_read_series
+  use dkt_io_reopen, only: io_reopen, io_read_series, io_run_id
   implicit none
   private
   public :: io_t, io_open, io_write_run, io_write_fields, io_write_series, io_write_table, &
             io_write_attribute, io_close, io_flush, io_file_exists, io_reopen, io_set_rows, &
-            io_read_series
+            io_read_series, io_run_id
 
   !> Set attribute `name` of the group or dataset at `path` (e.g. '/particles' or
   !! '/particles/x') to rank 0's value: a real(wp), an integer or a character string (stored as

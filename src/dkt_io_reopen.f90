@@ -7,6 +7,7 @@ module dkt_io_reopen
   use dkt_run_file, only: io_t, io_close, run_file_open, check, field_group, one, open_object, &
                           delete_attribute
   use dkt_xdmf, only: xdmf_add_frame, xdmf_write
+  use dkt_h5file, only: h5_real_attribute
   use mpi_f08, only: MPI_Comm
   use hdf5, only: hid_t, hsize_t, size_t, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5lexists_f, &
                   h5gn_members_f, h5gget_obj_info_idx_f, H5G_DATASET_F, H5G_GROUP_F, &
@@ -16,7 +17,7 @@ module dkt_io_reopen
                   H5T_INTEGER_F, h5oopen_f, h5oclose_f, h5aopen_f, h5aread_f, h5aclose_f
   implicit none
   private
-  public :: io_reopen, io_read_series
+  public :: io_reopen, io_read_series, io_run_id
 
   !> the attributes of /diagnostics that say a run finished (dkt_output output_pair_report):
   !! a continued run removes them until it finishes in its turn
@@ -252,6 +253,14 @@ contains
     n = io%ny
     if (nd == 2) n = int(dims(2))
   end function field_rows
+
+  !> The identity of the open run file (/run run_id), 0 when it has none (an earlier version's).
+  real(wp) function io_run_id(io) result(id)
+    type(io_t), intent(in) :: io
+    logical :: found
+    call h5_real_attribute(io%file_id, 'run', 'run_id', id, found)
+    if (.not. found) id = 0.0_wp
+  end function io_run_id
 
   !> Every value of the real series dataset `path` of the open run file: values(w, s) is value
   !! w of sample s (w = 1 for a 1-D series, the particle or column of a 2-D one). Every rank

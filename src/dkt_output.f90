@@ -4,7 +4,7 @@
 module dkt_output
   use mpi_f08, only: MPI_Bcast, MPI_LOGICAL
   use iso_fortran_env, only: compiler_version
-  use dkt_kinds, only: wp, cs2
+  use dkt_kinds, only: wp, cs2, i8, mpi_wp
   use dkt_errors, only: fatal_all, fatal_local, internal_error, EXIT_RUNTIME
   use dkt_mrt, only: collision_describe
   use dkt_fields, only: macroscopic, vorticity
@@ -16,7 +16,7 @@ module dkt_output
   use dkt_window, only: window_offset
   use dkt_io, only: io_t, io_open, io_write_run, io_write_fields, io_close, io_write_series, &
                     io_write_table, io_write_attribute, io_reopen, io_flush, io_set_rows, &
-                    io_read_series
+                    io_read_series, io_run_id
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
                             directory_problem
@@ -28,7 +28,7 @@ module dkt_output
   public :: output_t, output_open, output_check_existing, output_check_dir, output_fields, &
             output_particles, output_pair_report, output_close, output_fail, output_final, &
             output_scheduled, output_mark_finished, output_initial, output_resume, output_free, &
-            output_set_stop_reason, output_flush, output_samples
+            output_set_stop_reason, output_flush, output_samples, output_run_id
 
   !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
   !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
@@ -75,6 +75,9 @@ module dkt_output
     !> the changes of the input run.restart_changes allowed on resuming, for the run file:
     !! 'group.key old -> new; ...', '' if none
     character(len=:), allocatable :: restart_changes
+    !> the run file's identity (/run run_id), which every checkpoint of the run carries: a
+    !! restart refuses a checkpoint of another run's file
+    real(wp) :: run_id = 0.0_wp
   end type output_t
 
 contains
@@ -122,6 +125,34 @@ contains
     output_samples = out%samples
   end function output_samples
 
+  !> The run file's identity (/run run_id): a whole number in [1, 2^52], drawn when the file is
+  !! made; checkpoints carry it (dkt_checkpoint_policy).
+  pure real(wp) function output_run_id(out)
+    type(output_t), intent(in) :: out
+    output_run_id = out%run_id
+  end function output_run_id
+
+  !> A new identity for a run file, the same on every rank (rank 0 draws it from the clock of
+  !! the day, to the millisecond, and the system clock's count): two runs started apart get
+  !! different ones.
+  subroutine new_run_id(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    integer :: v(8)
+    integer(i8) :: count, h
+    call date_and_time(values=v)
+    call system_clock(count)
+    ! the milliseconds since the year 0 (about 2^56) and the count, each hashed in 31 bits
+    ! (no product overflows 63 bits), into 52: an id is a whole number, exact in 8 bytes
+    h = int(v(1), i8)*372_i8 + v(2)*31_i8 + v(3)
+    h = ((h*24_i8 + v(5))*60_i8 + v(6))*60_i8 + v(7)
+    h = h*1000_i8 + v(8)
+    h = ieor(modulo(h, 2_i8**31)*2654435761_i8, modulo(count, 2_i8**31)*40503_i8)
+    out%run_id = real(modulo(h, 2_i8**52), wp) + 1.0_wp
+    call MPI_Bcast(out%run_id, 1, mpi_wp, 0, sim%dom%comm)
+    call write_quantity(out%io, '/run', 'run_id', out%run_id, '1')
+  end subroutine new_run_id
+
   !> Close whatever of the output is still open, without writing to it.
   subroutine output_free(out)
     type(output_t), intent(inout) :: out
@@ -166,6 +197,9 @@ contains
       out%file_open = .true.
       ! the file was cut back: it describes a run going on from here, whatever follows
       call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+      ! (a file of an earlier version has no identity: it gets one now)
+      out%run_id = io_run_id(out%io)
+      if (out%run_id == 0.0_wp) call new_run_id(out, sim)
       if (sim%dom%rank == 0) call remove_file(dir//'/'//sim%cfg%name//'.finished')
       call log_open(dir//'/'//sim%cfg%name//'.log', err, append=.true.)
       if (len(err) > 0) call fatal_local(err)
@@ -209,6 +243,7 @@ contains
     ! replaced when the run ends; a file that still says 'running' is of a run that is going
     ! on or was killed
     call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+    call new_run_id(out, sim)
     if (sim%pair_on .and. sim%dom%rank == 0) then
       ! the pair's series for readers without HDF5; the .h5 beside it was new or overwritable
       open (newunit=out%csv_unit, file=dir//'/'//sim%cfg%name//'_diagnostics.csv', &

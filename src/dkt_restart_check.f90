@@ -7,15 +7,16 @@ module dkt_restart_check
   use ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Allreduce, MPI_LOGICAL, MPI_LAND
   use hdf5, only: hsize_t
-  use dkt_kinds, only: wp
+  use dkt_kinds, only: wp, i8
   use dkt_checkpoint, only: checkpoint_t
   use dkt_run_state, only: simulation_t
   use dkt_window, only: window_t, window_offset
-  use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_get_real, io_dataset_dims
+  use dkt_h5file, only: io_file_t, io_file_open, io_file_close, io_get_real, io_dataset_dims, &
+                        io_file_attribute
   use dkt_text, only: itoa, fmt_real
   implicit none
   private
-  public :: restart_problem
+  public :: restart_problem, run_file_problem
 
 contains
 
@@ -34,6 +35,38 @@ contains
     if (len(p) == 0) p = particle_problem(sim, chk)
     if (len(p) == 0) p = series_problem(sim, chk)
   end function restart_problem
+
+  !> Whether the run file the resumed run would continue (<output.dir>/<name>.h5) is the one the
+  !! checkpoint's run wrote: both carry the identity drawn when the file was made (/run run_id,
+  !! the checkpoint's /run_id). '' if they match, or when either has none (files of an earlier
+  !! version) or there is no run file (io_reopen says so).
+  function run_file_problem(sim, chk) result(p)
+    type(simulation_t), intent(in) :: sim
+    type(checkpoint_t), intent(in) :: chk
+    character(len=:), allocatable :: p
+    type(io_file_t) :: pf
+    character(len=:), allocatable :: file, err
+    character(len=24) :: a, b
+    real(wp) :: id
+    logical :: exists, everywhere, found
+    p = ''
+    if (chk%run_id == 0.0_wp) return
+    file = sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'
+    inquire (file=file, exist=exists)
+    call MPI_Allreduce(exists, everywhere, 1, MPI_LOGICAL, MPI_LAND, sim%dom%comm)
+    if (.not. everywhere) return
+    call io_file_open(pf, file, sim%dom%comm, .false., err)
+    if (len(err) > 0) return
+    call io_file_attribute(pf, 'run', 'run_id', id, found)
+    call io_file_close(pf, err)
+    if (.not. found .or. id == chk%run_id) return
+    write (a, '(i0)') int(id, i8)
+    write (b, '(i0)') int(chk%run_id, i8)
+    p = 'the run file '''//file//''' is another run''s: its /run run_id is '//trim(a)// &
+        ', the checkpoint''s run wrote the file with run_id '//trim(b)//'. Resuming would '// &
+        'splice this checkpoint onto the other run''s series. Put back the run file of the '// &
+        'run that wrote the checkpoint, or resume into another output.dir holding it'
+  end function run_file_problem
 
   !> A checkpoint named <name>_chk_<9 digits>.h5 (checkpoint_name) holds the step of its name.
   function step_problem(chk, path) result(p)

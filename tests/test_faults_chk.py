@@ -269,3 +269,47 @@ def test_a_restart_rebuilds_the_csv_from_the_run_file(
                     assert np.array_equal(d[()], b[group][name][()], equal_nan=True), name
         assert a["diagnostics"].attrs["pattern"] == b["diagnostics"].attrs["pattern"]
         assert b["run"].attrs["stop_reason"] == "finished"
+
+
+def test_a_checkpoint_is_not_spliced_onto_another_runs_file(
+    reference: Path, tmp_path: Path
+) -> None:
+    """The run file of another run (here the same scene with another pair.dh, run longer)
+    copied over the reference's: resuming from the reference's checkpoint is refused, naming
+    both identities (/run run_id of the file, /run_id of the checkpoint), with exit status 2
+    and every file as it was. Before, the restart cut the other run's file back and continued
+    it, and the series jumped from one run to the other."""
+    other = tmp_path / "other"
+    run("case1.nml", RANKS, [*C1, "pair.dh=3", f"run.steps={STEPS + 100}"], other, timeout=300)
+    out = tmp_path / "run"
+    shutil.copytree(reference, out)
+    shutil.copy(other / "case1.h5", out / "case1.h5")
+    before = tree_digest(out)
+    proc = resume(out, out / HALF, STEPS)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("dktlbm: error")]
+    assert len(errors) == 1, proc.stderr
+    with h5py.File(other / "case1.h5") as h5, h5py.File(out / HALF) as chk:
+        theirs, ours = int(h5["run"].attrs["run_id"]), int(chk["run_id"][0])
+    assert theirs != ours
+    assert "another run's" in errors[0] and str(theirs) in errors[0] and str(ours) in errors[0]
+    assert tree_digest(out) == before, "a refused restart changed the run's files"
+
+
+def test_a_resumed_run_keeps_its_files_identity(reference: Path, tmp_path: Path) -> None:
+    """A run resumed from the half-way checkpoint writes its checkpoints with the run file's
+    identity, so that it can be resumed in its turn: half-way to the end, then the end to 1.5
+    STEPS, gives the series of the reference extended at once (no refusal, no sample twice)."""
+    out = tmp_path / "run"
+    shutil.copytree(reference, out)
+    with h5py.File(out / "case1.h5") as h5:
+        run_id = h5["run"].attrs["run_id"]
+    assert resume(out, out / HALF, STEPS).returncode == 0
+    with h5py.File(out / f"case1_chk_{STEPS:09d}.h5") as chk:
+        assert chk["run_id"][0] == run_id
+    longer = STEPS + STEPS // 2
+    proc = resume(out, out / f"case1_chk_{STEPS:09d}.h5", longer)
+    assert proc.returncode == 0, proc.stderr
+    with h5py.File(out / "case1.h5") as h5:
+        assert h5["run"].attrs["run_id"] == run_id
+        assert np.all(np.diff(h5["particles/t"][()]) > 0)
