@@ -48,15 +48,10 @@ contains
     character(len=:), allocatable :: file, err
     character(len=24) :: a, b
     real(wp) :: id
-    logical :: exists, everywhere, found
+    logical :: found
     p = ''
     if (chk%run_id == 0.0_wp) return
-    file = sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'
-    inquire (file=file, exist=exists)
-    call MPI_Allreduce(exists, everywhere, 1, MPI_LOGICAL, MPI_LAND, sim%dom%comm)
-    if (.not. everywhere) return
-    call io_file_open(pf, file, sim%dom%comm, .false., err)
-    if (len(err) > 0) return
+    if (.not. open_run_file(sim, pf, file)) return
     call io_file_attribute(pf, 'run', 'run_id', id, found)
     call io_file_close(pf, err)
     if (.not. found .or. id == chk%run_id) return
@@ -67,6 +62,23 @@ contains
         'splice this checkpoint onto the other run''s series. Put back the run file of the '// &
         'run that wrote the checkpoint, or resume into another output.dir holding it'
   end function run_file_problem
+
+  !> Open the run file a resumed run continues, <output.dir>/<name>.h5, for reading on every
+  !! rank: .false. when some rank does not see it or it is not an HDF5 file (io_reopen refuses
+  !! that later, with its message).
+  logical function open_run_file(sim, pf, file) result(ok)
+    type(simulation_t), intent(in) :: sim
+    type(io_file_t), intent(out) :: pf
+    character(len=:), allocatable, intent(out) :: file
+    character(len=:), allocatable :: err
+    logical :: exists
+    file = sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'
+    inquire (file=file, exist=exists)
+    call MPI_Allreduce(exists, ok, 1, MPI_LOGICAL, MPI_LAND, sim%dom%comm)
+    if (.not. ok) return
+    call io_file_open(pf, file, sim%dom%comm, .false., err)
+    ok = len(err) == 0
+  end function open_run_file
 
   !> A checkpoint named <name>_chk_<9 digits>.h5 (checkpoint_name) holds the step of its name.
   function step_problem(chk, path) result(p)
@@ -169,7 +181,6 @@ contains
     integer :: nd, n
     integer(hsize_t) :: dims(3)
     real(wp) :: t(2), t_step, dt, offset(1)
-    logical :: exists, everywhere
     p = ''
     if (.not. sim%particles_on) then
       if (chk%samples /= 0) p = '/state_int counts '//itoa(chk%samples)//' series samples, '// &
@@ -180,12 +191,7 @@ contains
       p = '/state_int counts no series sample, but a run with particles writes one at step 0'
       return
     end if
-    file = sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'
-    inquire (file=file, exist=exists)
-    call MPI_Allreduce(exists, everywhere, 1, MPI_LOGICAL, MPI_LAND, sim%dom%comm)
-    if (.not. everywhere) return
-    call io_file_open(pf, file, sim%dom%comm, .false., err)
-    if (len(err) > 0) return
+    if (.not. open_run_file(sim, pf, file)) return
     call io_dataset_dims(pf, 'particles/t', nd, dims)
     n = int(dims(1))
     if (nd == 1 .and. n >= chk%samples) then
