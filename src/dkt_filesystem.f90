@@ -1,16 +1,20 @@
 !> The little the code needs from the file system that Fortran does not offer: creating a
 !> directory path (POSIX mkdir through C interoperability), testing for existence, renaming a
 !> file in one step (POSIX rename: a reader sees the old file or the new one, never a part),
-!> deleting one, and reserving the space a file will need (POSIX posix_fallocate).
+!> deleting one, reserving the space a file will need (POSIX posix_fallocate), and holding a
+!> lock file while the process lives (POSIX flock).
 module dkt_filesystem
   use iso_c_binding, only: c_char, c_int, c_null_char, c_long, c_ptr, c_f_pointer, &
-                           c_associated
+                           c_associated, c_size_t
   implicit none
   private
   public :: make_directories, path_exists, rename_file, remove_file, write_marker
-  public :: directory_problem, reserve_space
+  public :: directory_problem, reserve_space, lock_take, lock_release, process_id
 
   integer(c_int), parameter :: O_WRONLY = 1 !! open(2) flag (Linux, BSD, macOS)
+  integer(c_int), parameter :: O_RDWR = 2   !! open(2) flag (Linux, BSD, macOS)
+  !> flock(2) operations (Linux, BSD, macOS): exclusive, without waiting
+  integer(c_int), parameter :: LOCK_EX = 2, LOCK_NB = 4
 
   interface
     integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
@@ -36,6 +40,24 @@ module dkt_filesystem
       import :: c_int
       integer(c_int), value :: fd
     end function c_close
+    integer(c_int) function c_flock(fd, operation) bind(C, name='flock')
+      import :: c_int
+      integer(c_int), value :: fd, operation
+    end function c_flock
+    integer(c_int) function c_ftruncate(fd, length) bind(C, name='ftruncate')
+      import :: c_int, c_long
+      integer(c_int), value :: fd
+      integer(c_long), value :: length
+    end function c_ftruncate
+    integer(c_long) function c_write(fd, buf, count) bind(C, name='write')
+      import :: c_int, c_long, c_char, c_size_t
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(in) :: buf(*)
+      integer(c_size_t), value :: count
+    end function c_write
+    integer(c_int) function c_getpid() bind(C, name='getpid')
+      import :: c_int
+    end function c_getpid
     !> returns the error number (0 on success), not -1 and errno
     integer(c_int) function c_posix_fallocate(fd, offset, length) bind(C, name='posix_fallocate')
       import :: c_int, c_long
@@ -55,6 +77,64 @@ contains
     character(len=*), intent(in) :: old, new
     rename_file = c_rename(old//c_null_char, new//c_null_char) == 0
   end function rename_file
+
+  !> This process's id.
+  integer function process_id()
+    process_id = int(c_getpid())
+  end function process_id
+
+  !> Take the lock file `path` (made if missing) for as long as this process keeps `fd` open: an
+  !! exclusive flock(2), which the system releases when the process ends however it ends (a run
+  !! killed leaves no stale lock). Taken: fd >= 0, and `text` (who holds it) is the file's
+  !! content. Held by another process: fd = -1 and `holder` is the text it wrote. The file is
+  !! never deleted (a process could lock a deleted file while another makes a new one); its
+  !! content is emptied on release. err is '' unless the file cannot be made or opened.
+  subroutine lock_take(path, text, fd, holder, err)
+    character(len=*), intent(in) :: path, text
+    integer, intent(out) :: fd
+    character(len=:), allocatable, intent(out) :: holder, err
+    character(len=256) :: line
+    integer :: u, ios
+    integer(c_int) :: cfd
+    integer(c_long) :: written
+    holder = ''
+    err = ''
+    fd = -1
+    if (.not. path_exists(path)) then
+      open (newunit=u, file=path, status='unknown', action='write', iostat=ios)
+      if (ios == 0) close (u)
+    end if
+    cfd = c_open(path//c_null_char, O_RDWR)
+    if (cfd < 0) then
+      err = 'cannot open the lock file '''//path//''''
+      return
+    end if
+    if (c_flock(cfd, ior(LOCK_EX, LOCK_NB)) /= 0) then
+      cfd = c_close(cfd)
+      open (newunit=u, file=path, status='old', action='read', iostat=ios)
+      if (ios == 0) then
+        read (u, '(a)', iostat=ios) line
+        if (ios == 0) holder = trim(line)
+        close (u)
+      end if
+      return
+    end if
+    ! the text through the locked descriptor (closing another one would drop an emulated lock)
+    ! (who holds it is for the message of a run refused; a failed write costs only that)
+    if (c_ftruncate(cfd, 0_c_long) == 0) &
+      written = c_write(cfd, text//new_line('a'), int(len(text) + 1, c_size_t))
+    fd = int(cfd)
+  end subroutine lock_take
+
+  !> Release a lock lock_take took (fd >= 0), emptying the file first.
+  subroutine lock_release(fd)
+    integer, intent(inout) :: fd
+    integer(c_int) :: e
+    if (fd < 0) return
+    e = c_ftruncate(int(fd, c_int), 0_c_long)
+    e = c_close(int(fd, c_int))
+    fd = -1
+  end subroutine lock_release
 
   !> Delete the file at `path` if there is one.
   subroutine remove_file(path)

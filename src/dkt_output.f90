@@ -2,7 +2,7 @@
 !> the pair's CSV file and the log, opened (or continued after a restart) once the input is
 !> checked, written on the loop's schedule, completed and closed however the run ends.
 module dkt_output
-  use mpi_f08, only: MPI_Bcast, MPI_LOGICAL
+  use mpi_f08, only: MPI_Bcast, MPI_LOGICAL, MPI_Get_processor_name, MPI_MAX_PROCESSOR_NAME
   use iso_fortran_env, only: compiler_version
   use dkt_kinds, only: wp, cs2, i8, mpi_wp
   use dkt_errors, only: fatal_all, fatal_local, internal_error, EXIT_RUNTIME
@@ -19,7 +19,7 @@ module dkt_output
                     io_read_series, io_run_id
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
-                            directory_problem
+                            directory_problem, lock_take, lock_release, process_id
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
@@ -78,6 +78,8 @@ module dkt_output
     !> the run file's identity (/run run_id), which every checkpoint of the run carries: a
     !! restart refuses a checkpoint of another run's file
     real(wp) :: run_id = 0.0_wp
+    !> rank 0's descriptor of <name>.lock in output.dir while the run writes there, else -1
+    integer :: lock_fd = -1
   end type output_t
 
 contains
@@ -160,6 +162,7 @@ contains
     out%file_open = .false.
     if (out%csv_open) close (out%csv_unit)
     out%csv_open = .false.
+    call lock_release(out%lock_fd)
   end subroutine output_free
 
   !> Create the output directory and file, and store the run's metadata. Called only after
@@ -183,6 +186,7 @@ contains
     ! only rank 0 knows the reason; it is the rank that prints
     if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
                                  err//'; choose a writable output.dir')
+    call take_directory(out, sim)
     if (out%resumed) then
       ! the output of the run that wrote the checkpoint continues, cut back to its step
       call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
@@ -484,7 +488,40 @@ contains
     out%file_open = .false.
     if (out%csv_open) close (out%csv_unit)
     out%csv_open = .false.
+    call lock_release(out%lock_fd)
   end subroutine output_close
+
+  !> Hold output.dir for this scene while the run writes there (rank 0 takes <name>.lock,
+  !! dkt_filesystem lock_take), so that no second run writes the same files, not even with
+  !! output.overwrite or --restart: a directory a live run holds is refused before anything in
+  !! it changes, naming the process that holds it. The system drops the lock when the process
+  !! ends, however it ends.
+  subroutine take_directory(out, sim)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    character(len=MPI_MAX_PROCESSOR_NAME) :: host
+    character(len=:), allocatable :: path, holder, err
+    integer :: n
+    logical :: ok
+    path = sim%cfg%output_dir//'/'//sim%cfg%name//'.lock'
+    ok = .true.
+    holder = ''
+    if (sim%dom%rank == 0) then
+      call MPI_Get_processor_name(host, n)
+      call lock_take(path, 'dktlbm pid '//itoa(process_id())//' on host '//host(1:n)// &
+                     ', scene '//trim(sim%cfg%file), out%lock_fd, holder, err)
+      if (len(err) > 0) call fatal_local(trim(sim%cfg%file)//': output.dir = '''// &
+                                         sim%cfg%output_dir//''': '//err)
+      ok = out%lock_fd >= 0
+    end if
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (ok) return
+    if (len(holder) == 0) holder = 'a process that has not said which'
+    call fatal_all(trim(sim%cfg%file)//': output.dir = '''//sim%cfg%output_dir//''' is held '// &
+                   'by a live run of scene '''//sim%cfg%name//''' ('//holder//', '//path// &
+                   '): a second run would overwrite its files, so nothing there was '// &
+                   'changed. Wait until that run ends, stop it, or choose another output.dir')
+  end subroutine take_directory
 
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
   !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one

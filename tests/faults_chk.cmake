@@ -21,3 +21,8 @@ dkt_add_fortran_test(NAME test_guard SOURCES dkt_check.f90 test_guard.f90
 # About 10 short jobs on 2 and 3 ranks.
 dkt_add_pytest(NAME faults_physics FILE tests/test_faults_physics.py LABELS mpi regression
   PROCESSORS 3 TIMEOUT 600)
+# Shared output directories (tests/test_faults_shared.py): a second run into the directory a
+# live run of the same scene writes (with output.overwrite, without, or resuming) is refused
+# with the holder named and nothing changed; a run killed outright leaves no stale hold.
+dkt_add_pytest(NAME faults_shared FILE tests/test_faults_shared.py LABELS mpi regression
+  PROCESSORS 2 TIMEOUT 600)
