@@ -46,7 +46,8 @@ module dkt_checkpoint
                         io_put_int, io_get_real, io_get_int, io_dataset_dims
   implicit none
   private
-  public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, NSTATE, &
+  public :: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_rows, checkpoint_name, &
+            NSTATE, &
             STORAGE_NAMES
 
   !> lbm.precision by its code in /precision (0 to 3). 'single_arith' stores what 'single'
@@ -256,6 +257,26 @@ contains
       err = 'restart file '''//path//''' is damaged: '//close_err//'; use an earlier checkpoint'
     end if
   end subroutine checkpoint_read
+
+  !> The rows of the lattice the checkpoint at `path` holds (its /state_int), every rank; 0 when
+  !! it cannot be read (checkpoint_read then says why). A run resumes on the lattice of its
+  !! checkpoint, which a window may have grown (docs/model.md §5).
+  integer function checkpoint_rows(path, comm) result(ny)
+    character(len=*), intent(in) :: path
+    type(MPI_Comm), intent(in) :: comm
+    type(io_file_t) :: pf
+    type(checkpoint_t) :: chk
+    integer :: ints(NINT)
+    real(wp) :: rr(2)
+    logical :: foreign
+    character(len=:), allocatable :: err, what
+    ny = 0
+    call open_checkpoint(path, comm, pf, err)
+    if (len(err) > 0) return
+    call read_header(pf, chk, ints, rr, foreign, what)
+    call io_file_close(pf, err)
+    if (.not. foreign .and. len(what) == 0 .and. len(err) == 0) ny = chk%ny
+  end function checkpoint_rows
 
   !> Open the checkpoint at `path` for reading on every rank of `comm`; err is '' on success,
   !! else the same message on every rank (the file is missing or not HDF5).

@@ -4,13 +4,14 @@
 !> beyond run.checkpoint_keep; the command that resumes; and the resumption itself.
 module dkt_checkpoint_policy
   use mpi_f08, only: MPI_Wtime, MPI_Bcast, MPI_LOGICAL, MPI_Iallreduce, MPI_Wait, MPI_Request, &
-                     MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR
+                     MPI_STATUS_IGNORE, MPI_INTEGER, MPI_BOR, MPI_Comm
   use dkt_kinds, only: wp
   use dkt_errors, only: fatal_all, warn
-  use dkt_config, only: config_t
+  use dkt_config, only: config_t, lattice_params_t
   use dkt_particles, only: particle_t, particles_gather, particles_distribute
   use dkt_particle_links, only: particles_find_links
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
+                            checkpoint_rows, &
                             NSTATE, STORAGE_NAMES
   use dkt_signals, only: signals_install, signal_mask, signal_name
   use dkt_log, only: log_line
@@ -26,7 +27,7 @@ module dkt_checkpoint_policy
   private
   public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
             checkpoint_final, checkpoint_stop_message, checkpoint_resume, &
-            checkpoint_interrupted, input_check_i
+            checkpoint_interrupted, input_check_i, resume_rows
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
 
@@ -266,11 +267,32 @@ contains
   pure logical function grown_to(sim, ny)
     type(simulation_t), intent(in) :: sim
     integer, intent(in) :: ny
-    grown_to = .false.
-    if (.not. sim%window_on .or. sim%lp%grow_rows < 1) return
-    if (ny <= sim%lp%ny .or. ny > sim%lp%ny_max) return
-    grown_to = ny == sim%lp%ny_max .or. mod(ny - sim%lp%ny, sim%lp%grow_rows) == 0
+    grown_to = sim%window_on .and. window_grows_to(sim%lp, ny)
   end function grown_to
+
+  !> Whether a window of the lattice `lp` that grows (window.max_above) can reach ny rows.
+  pure logical function window_grows_to(lp, ny)
+    type(lattice_params_t), intent(in) :: lp
+    integer, intent(in) :: ny
+    window_grows_to = .false.
+    if (lp%grow_rows < 1) return
+    if (ny <= lp%ny .or. ny > lp%ny_max) return
+    window_grows_to = ny == lp%ny_max .or. mod(ny - lp%ny, lp%grow_rows) == 0
+  end function window_grows_to
+
+  !> The rows a run resumed from the checkpoint at `path` starts with: those of its lattice when
+  !! the window had grown to them, so that the slabs are judged and split on the lattice the
+  !! run continues on (a grown window may allow more ranks than the first one), else lp%ny.
+  integer function resume_rows(lp, window_on, path, comm) result(ny)
+    type(lattice_params_t), intent(in) :: lp
+    logical, intent(in) :: window_on
+    character(len=*), intent(in) :: path
+    type(MPI_Comm), intent(in) :: comm
+    ny = lp%ny
+    if (.not. window_on .or. lp%grow_rows < 1) return
+    ny = checkpoint_rows(path, comm)
+    if (.not. window_grows_to(lp, ny)) ny = lp%ny
+  end function resume_rows
 
   !> Write the checkpoint of the current step, name it in <dir>/<name>.checkpoint and delete
   !! the checkpoints beyond run.checkpoint_keep. A failed write stops the run; the checkpoint

@@ -9,7 +9,7 @@ module dkt_filesystem
   implicit none
   private
   public :: make_directories, path_exists, rename_file, remove_file, write_marker
-  public :: directory_problem, reserve_space, lock_take, lock_release, process_id
+  public :: directory_problem, reserve_space, lock_take, lock_release, lock_held, process_id
 
   integer(c_int), parameter :: O_WRONLY = 1 !! open(2) flag (Linux, BSD, macOS)
   integer(c_int), parameter :: O_RDWR = 2   !! open(2) flag (Linux, BSD, macOS)
@@ -93,7 +93,6 @@ contains
     character(len=*), intent(in) :: path, text
     integer, intent(out) :: fd
     character(len=:), allocatable, intent(out) :: holder, err
-    character(len=256) :: line
     integer :: u, ios
     integer(c_int) :: cfd
     integer(c_long) :: written
@@ -111,12 +110,7 @@ contains
     end if
     if (c_flock(cfd, ior(LOCK_EX, LOCK_NB)) /= 0) then
       cfd = c_close(cfd)
-      open (newunit=u, file=path, status='old', action='read', iostat=ios)
-      if (ios == 0) then
-        read (u, '(a)', iostat=ios) line
-        if (ios == 0) holder = trim(line)
-        close (u)
-      end if
+      holder = first_line(path)
       return
     end if
     ! the text through the locked descriptor (closing another one would drop an emulated lock)
@@ -125,6 +119,38 @@ contains
       written = c_write(cfd, text//new_line('a'), int(len(text) + 1, c_size_t))
     fd = int(cfd)
   end subroutine lock_take
+
+  !> Whether another process holds the lock file `path` (lock_take), without making the file or
+  !! writing to it: .false. when there is no such file or nobody holds it. `holder` is the text
+  !! the holder wrote.
+  logical function lock_held(path, holder) result(held)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: holder
+    integer(c_int) :: cfd, e
+    held = .false.
+    holder = ''
+    if (.not. path_exists(path)) return
+    cfd = c_open(path//c_null_char, O_RDWR)
+    if (cfd < 0) return
+    held = c_flock(cfd, ior(LOCK_EX, LOCK_NB)) /= 0
+    ! (closing the descriptor drops a lock taken here)
+    e = c_close(cfd)
+    if (held) holder = first_line(path)
+  end function lock_held
+
+  !> The first line of the text file `path` ('' if it cannot be read).
+  function first_line(path) result(line)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: line
+    character(len=256) :: buf
+    integer :: u, ios
+    line = ''
+    open (newunit=u, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    read (u, '(a)', iostat=ios) buf
+    if (ios == 0) line = trim(buf)
+    close (u)
+  end function first_line
 
   !> Release a lock lock_take took (fd >= 0), emptying the file first.
   subroutine lock_release(fd)

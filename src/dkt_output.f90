@@ -19,7 +19,7 @@ module dkt_output
                     io_read_series, io_run_id
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
-                            directory_problem, lock_take, lock_release, process_id
+                            directory_problem, lock_take, lock_release, lock_held, process_id
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
@@ -186,7 +186,8 @@ contains
     ! only rank 0 knows the reason; it is the rank that prints
     if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
                                  err//'; choose a writable output.dir')
-    call take_directory(out, sim)
+    ! a live run's directory is refused before anything else is said or changed
+    call check_live_run(sim)
     if (out%resumed) then
       ! the output of the run that wrote the checkpoint continues, cut back to its step
       call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
@@ -197,6 +198,7 @@ contains
                      [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
                                        out%restart_from//': '//err)
+      call take_directory(out, sim)
       out%io%compress = sim%cfg%output%compress
       out%file_open = .true.
       ! the file was cut back: it describes a run going on from here, whatever follows
@@ -215,6 +217,7 @@ contains
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
     ! that a file that appears meanwhile is not clobbered)
     call output_check_existing(out, sim)
+    call take_directory(out, sim)
     call io_open(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
@@ -493,35 +496,64 @@ contains
 
   !> Hold output.dir for this scene while the run writes there (rank 0 takes <name>.lock,
   !! dkt_filesystem lock_take), so that no second run writes the same files, not even with
-  !! output.overwrite or --restart: a directory a live run holds is refused before anything in
-  !! it changes, naming the process that holds it. The system drops the lock when the process
-  !! ends, however it ends.
+  !! output.overwrite or --restart. Taken once the run's other checks have passed: a refused
+  !! run leaves the directory as it was. The system drops the lock when the process ends,
+  !! however it ends.
   subroutine take_directory(out, sim)
     type(output_t), intent(inout) :: out
     type(simulation_t), intent(in) :: sim
     character(len=MPI_MAX_PROCESSOR_NAME) :: host
-    character(len=:), allocatable :: path, holder, err
+    character(len=:), allocatable :: holder, err
     integer :: n
     logical :: ok
-    path = sim%cfg%output_dir//'/'//sim%cfg%name//'.lock'
     ok = .true.
-    holder = ''
     if (sim%dom%rank == 0) then
       call MPI_Get_processor_name(host, n)
-      call lock_take(path, 'dktlbm pid '//itoa(process_id())//' on host '//host(1:n)// &
-                     ', scene '//trim(sim%cfg%file), out%lock_fd, holder, err)
+      call lock_take(lock_path(sim), 'dktlbm pid '//itoa(process_id())//' on host '// &
+                     host(1:n)//', scene '//trim(sim%cfg%file), out%lock_fd, holder, err)
       if (len(err) > 0) call fatal_local(trim(sim%cfg%file)//': output.dir = '''// &
                                          sim%cfg%output_dir//''': '//err)
       ok = out%lock_fd >= 0
     end if
     call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
     if (ok) return
-    if (len(holder) == 0) holder = 'a process that has not said which'
-    call fatal_all(trim(sim%cfg%file)//': output.dir = '''//sim%cfg%output_dir//''' is held '// &
-                   'by a live run of scene '''//sim%cfg%name//''' ('//holder//', '//path// &
-                   '): a second run would overwrite its files, so nothing there was '// &
-                   'changed. Wait until that run ends, stop it, or choose another output.dir')
+    ! (another run took it since check_live_run looked)
+    if (.not. allocated(holder)) allocate (character(len=0) :: holder)
+    call refuse_live_run(sim, holder)
   end subroutine take_directory
+
+  !> Stop every rank, changing nothing, when a live run holds output.dir for this scene (its
+  !! <name>.lock), whatever output.overwrite says and on a restart too.
+  subroutine check_live_run(sim)
+    type(simulation_t), intent(in) :: sim
+    character(len=:), allocatable :: holder
+    logical :: held
+    held = .false.
+    if (sim%dom%rank == 0) held = lock_held(lock_path(sim), holder)
+    call MPI_Bcast(held, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    if (.not. held) return
+    if (.not. allocated(holder)) allocate (character(len=0) :: holder)
+    call refuse_live_run(sim, holder)
+  end subroutine check_live_run
+
+  function lock_path(sim) result(path)
+    type(simulation_t), intent(in) :: sim
+    character(len=:), allocatable :: path
+    path = sim%cfg%output_dir//'/'//sim%cfg%name//'.lock'
+  end function lock_path
+
+  subroutine refuse_live_run(sim, holder)
+    type(simulation_t), intent(in) :: sim
+    character(len=*), intent(in) :: holder !! what the holder wrote (rank 0), '' if unknown
+    character(len=:), allocatable :: who
+    who = holder
+    if (len(who) == 0) who = 'a process that has not said which'
+    call fatal_all(trim(sim%cfg%file)//': output.dir = '''//sim%cfg%output_dir//''' is held '// &
+                   'by a live run of scene '''//sim%cfg%name//''' ('//who//', '// &
+                   lock_path(sim)//'): a second run would overwrite its files, so nothing '// &
+                   'there was changed. Wait until that run ends, stop it, or choose another '// &
+                   'output.dir')
+  end subroutine refuse_live_run
 
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
   !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one

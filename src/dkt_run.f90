@@ -21,7 +21,8 @@ module dkt_run
                         report_performance
   use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_resume, checkpoint_start, &
                                    checkpoint_due, checkpoint_finish, checkpoint_final, &
-                                   checkpoint_stop_message, checkpoint_interrupted, input_check_i
+                                   checkpoint_stop_message, checkpoint_interrupted, input_check_i, &
+                                   resume_rows
   implicit none
   private
   public :: run_t, run_setup, run_execute, run_finish
@@ -48,7 +49,11 @@ contains
     logical, intent(in) :: check
     !> the input layer's comparison of the input with the one stored in the checkpoint
     procedure(input_check_i) :: input_check
-    call simulation_setup(run%sim, cfg, lp, comm, lattices=.not. check)
+    type(lattice_params_t) :: at
+    ! a resumed run starts on its checkpoint's lattice, which a window may have grown
+    at = lp
+    if (len(restart) > 0) at%ny = resume_rows(lp, cfg%window%enabled, restart, comm)
+    call simulation_setup(run%sim, cfg, at, comm, lattices=.not. check)
     call output_check_dir(run%sim)
     if (len(restart) > 0 .and. .not. check) &
       call checkpoint_resume(run%chk, run%out, run%sim, restart, input_check)

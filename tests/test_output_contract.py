@@ -297,13 +297,17 @@ def test_time_per_part_line_splits_the_loop_without_overlap(result) -> None:
 def test_default_output_directory_is_runs_slash_the_scene_name(tmp_path: Path) -> None:
     """With output.dir = '' everything goes to runs/<namelist basename>/ below the working
     directory: <name>.h5, <name>.xdmf, <name>.log, the marker <name>.finished (for batch
-    scripts) and nothing else."""
+    scripts), the lock <name>.lock (held while the run writes there, left empty) and nothing
+    else."""
     args = [str(INPUT / f"{NAME}.nml"), "--set", "run.steps=2"]
     proc = run_args(args, RANKS, TIMEOUT, tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert [p.name for p in tmp_path.iterdir()] == ["runs"]
     made = sorted(p.name for p in (tmp_path / "runs" / NAME).iterdir())
-    assert made == [f"{NAME}.finished", f"{NAME}.h5", f"{NAME}.log", f"{NAME}.xdmf"]
+    assert made == [
+        f"{NAME}.finished", f"{NAME}.h5", f"{NAME}.lock", f"{NAME}.log", f"{NAME}.xdmf"
+    ]
+    assert (tmp_path / "runs" / NAME / f"{NAME}.lock").read_text() == ""
 
 
 # ---- metadata of a run with particles (input/case1.nml, coarse and short) ----------------------

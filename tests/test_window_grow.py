@@ -14,6 +14,8 @@ Proves:
 - a run resumed from a checkpoint written before the growth, and one from a checkpoint written
   after it (a lattice of 121 rows, on another rank count), equal the uninterrupted run, bit for
   bit, XDMF sidecar included; a checkpoint of a row count the scene cannot grow to is refused;
+- a checkpoint after the growth resumes on a rank count that only the grown lattice allows (its
+  slabs are judged on the checkpoint's rows, not the first window's);
 - each snapshot's XDMF grid has that snapshot's rows, the Python reader reads both sizes, and
   ParaView (when pvpython is installed) sees both;
 - a window grown to its limit still ends the run with window_escape and a warning naming
@@ -223,6 +225,21 @@ def test_a_restart_before_or_after_the_growth_equals_the_uninterrupted_run(
     proc = run(NML, 3, SETS, out, extra=["--restart", str(out / f"case2_chk_{step:09d}.h5")],
                timeout=600)
     assert ("window grown" in proc.stdout) == (step < GROWS_AT), proc.stdout
+    assert_same_output(runs.get(1), out)
+
+
+def test_a_checkpoint_after_the_growth_resumes_on_ranks_only_the_grown_lattice_allows(
+    runs: Runs, checkpointed: Path, tmp_path: Path
+) -> None:
+    """A slab of this scene needs 16 rows: 97 rows allow at most 6 ranks, 121 allow 7. The
+    checkpoint written after the growth holds 121 rows, and the run resumes from it on 7 ranks
+    (it was refused there, judged by the first window's 97 rows), equal to the uninterrupted
+    run bit for bit. A new run on 7 ranks is still refused, naming the 97 rows."""
+    fresh = run(NML, 7, SETS, tmp_path / "fresh", check=False, timeout=600)
+    assert fresh.returncode != 0 and "the channel has 97 rows" in fresh.stderr, fresh.stderr
+    out = tmp_path / "resumed"
+    shutil.copytree(checkpointed, out)
+    run(NML, 7, SETS, out, extra=["--restart", str(out / "case2_chk_000000576.h5")], timeout=600)
     assert_same_output(runs.get(1), out)
 
 
