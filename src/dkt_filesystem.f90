@@ -9,7 +9,8 @@ module dkt_filesystem
   implicit none
   private
   public :: make_directories, path_exists, rename_file, remove_file, write_marker
-  public :: directory_problem, reserve_space, lock_take, lock_release, lock_held, process_id
+  public :: directory_problem, reserve_space, space_problem, lock_take, lock_release, &
+            lock_held, process_id
 
   integer(c_int), parameter :: O_WRONLY = 1 !! open(2) flag (Linux, BSD, macOS)
   integer(c_int), parameter :: O_RDWR = 2   !! open(2) flag (Linux, BSD, macOS)
@@ -288,6 +289,17 @@ contains
     end if
     if (len(err) > 0) call remove_file(path)
   end subroutine reserve_space
+
+  !> Whether `bytes` bytes fit in the directory `dir` now: '' if they do (or the file system
+  !! cannot say), else the system's reason. The space is reserved in a file <dir>/<probe> that
+  !! is removed again.
+  function space_problem(dir, probe, bytes) result(err)
+    character(len=*), intent(in) :: dir, probe
+    integer(c_long), intent(in) :: bytes
+    character(len=:), allocatable :: err
+    call reserve_space(dir//'/'//probe, bytes, err)
+    call remove_file(dir//'/'//probe)
+  end function space_problem
 
   !> The system's text for error number `errnum` (strerror).
   function system_reason(errnum) result(text)

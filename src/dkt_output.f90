@@ -2,8 +2,9 @@
 !> the pair's CSV file and the log, opened (or continued after a restart) once the input is
 !> checked, written on the loop's schedule, completed and closed however the run ends.
 module dkt_output
-  use mpi_f08, only: MPI_Bcast, MPI_LOGICAL, MPI_Get_processor_name, MPI_MAX_PROCESSOR_NAME
+  use mpi_f08, only: MPI_Bcast, MPI_LOGICAL
   use iso_fortran_env, only: compiler_version
+  use iso_c_binding, only: c_long
   use dkt_kinds, only: wp, cs2, i8, mpi_wp
   use dkt_errors, only: fatal_all, fatal_local, internal_error, EXIT_RUNTIME
   use dkt_mrt, only: collision_describe
@@ -19,10 +20,11 @@ module dkt_output
                     io_read_series, io_run_id
   use dkt_log, only: log_line, log_open
   use dkt_filesystem, only: make_directories, remove_file, path_exists, write_marker, &
-                            directory_problem, lock_take, lock_release, lock_held, process_id
+                            directory_problem, lock_release, space_problem
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision, dkt_build_flags
   use dkt_run_state, only: simulation_t
+  use dkt_run_lock, only: run_lock_check, run_lock_take
   implicit none
   private
   public :: output_t, output_open, output_check_existing, output_check_dir, output_fields, &
@@ -187,7 +189,7 @@ contains
     if (.not. ok) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '// &
                                  err//'; choose a writable output.dir')
     ! a live run's directory is refused before anything else is said or changed
-    call check_live_run(sim)
+    call run_lock_check(sim)
     if (out%resumed) then
       ! the output of the run that wrote the checkpoint continues, cut back to its step
       call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
@@ -198,7 +200,7 @@ contains
                      [character(len=9) :: field_names, 'particle'], err)
       if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': --restart '// &
                                        out%restart_from//': '//err)
-      call take_directory(out, sim)
+      call run_lock_take(sim, out%lock_fd)
       out%io%compress = sim%cfg%output%compress
       out%file_open = .true.
       ! the file was cut back: it describes a run going on from here, whatever follows
@@ -217,7 +219,7 @@ contains
     ! any file an earlier run of this scene left there (io_open checks the .h5 once more, so
     ! that a file that appears meanwhile is not clobbered)
     call output_check_existing(out, sim)
-    call take_directory(out, sim)
+    call run_lock_take(sim, out%lock_fd)
     call io_open(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
@@ -494,67 +496,6 @@ contains
     call lock_release(out%lock_fd)
   end subroutine output_close
 
-  !> Hold output.dir for this scene while the run writes there (rank 0 takes <name>.lock,
-  !! dkt_filesystem lock_take), so that no second run writes the same files, not even with
-  !! output.overwrite or --restart. Taken once the run's other checks have passed: a refused
-  !! run leaves the directory as it was. The system drops the lock when the process ends,
-  !! however it ends.
-  subroutine take_directory(out, sim)
-    type(output_t), intent(inout) :: out
-    type(simulation_t), intent(in) :: sim
-    character(len=MPI_MAX_PROCESSOR_NAME) :: host
-    character(len=:), allocatable :: holder, err
-    integer :: n
-    logical :: ok
-    ok = .true.
-    if (sim%dom%rank == 0) then
-      call MPI_Get_processor_name(host, n)
-      call lock_take(lock_path(sim), 'dktlbm pid '//itoa(process_id())//' on host '// &
-                     host(1:n)//', scene '//trim(sim%cfg%file), out%lock_fd, holder, err)
-      if (len(err) > 0) call fatal_local(trim(sim%cfg%file)//': output.dir = '''// &
-                                         sim%cfg%output_dir//''': '//err)
-      ok = out%lock_fd >= 0
-    end if
-    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
-    if (ok) return
-    ! (another run took it since check_live_run looked)
-    if (.not. allocated(holder)) allocate (character(len=0) :: holder)
-    call refuse_live_run(sim, holder)
-  end subroutine take_directory
-
-  !> Stop every rank, changing nothing, when a live run holds output.dir for this scene (its
-  !! <name>.lock), whatever output.overwrite says and on a restart too.
-  subroutine check_live_run(sim)
-    type(simulation_t), intent(in) :: sim
-    character(len=:), allocatable :: holder
-    logical :: held
-    held = .false.
-    if (sim%dom%rank == 0) held = lock_held(lock_path(sim), holder)
-    call MPI_Bcast(held, 1, MPI_LOGICAL, 0, sim%dom%comm)
-    if (.not. held) return
-    if (.not. allocated(holder)) allocate (character(len=0) :: holder)
-    call refuse_live_run(sim, holder)
-  end subroutine check_live_run
-
-  function lock_path(sim) result(path)
-    type(simulation_t), intent(in) :: sim
-    character(len=:), allocatable :: path
-    path = sim%cfg%output_dir//'/'//sim%cfg%name//'.lock'
-  end function lock_path
-
-  subroutine refuse_live_run(sim, holder)
-    type(simulation_t), intent(in) :: sim
-    character(len=*), intent(in) :: holder !! what the holder wrote (rank 0), '' if unknown
-    character(len=:), allocatable :: who
-    who = holder
-    if (len(who) == 0) who = 'a process that has not said which'
-    call fatal_all(trim(sim%cfg%file)//': output.dir = '''//sim%cfg%output_dir//''' is held '// &
-                   'by a live run of scene '''//sim%cfg%name//''' ('//who//', '// &
-                   lock_path(sim)//'): a second run would overwrite its files, so nothing '// &
-                   'there was changed. Wait until that run ends, stop it, or choose another '// &
-                   'output.dir')
-  end subroutine refuse_live_run
-
   !> One sample of /particles/{t, x, y, u, v, omega, fx, fy, torque} in physical units (cm, s,
   !! force and torque per unit depth: g/s^2 and g cm/s^2). The force is the hydrodynamic one
   !! of the step that reached time t.
@@ -771,6 +712,7 @@ contains
       fld(:, :, 4) = fld(:, :, 4)/lp%dt
       y0 = 0.0_wp
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
+      call check_field_space(out, sim, n)
       out%fields_step = n
       ! the rows of this step: a window that grows has more than at the open
       call io_set_rows(out%io, sim%dom%ny, sim%dom%y0, sim%dom%nyl)
@@ -792,5 +734,28 @@ contains
       end if
     end associate
   end subroutine output_fields
+
+  !> The space of the field snapshot of step n first (its values, uncompressed, and 256 KiB for
+  !! the series held in memory): a parallel HDF5 write that fails for want of space cannot be
+  !! recovered (dkt_checkpoint). Without it the run stops as output_fail stops it: the series
+  !! written, stop_reason naming the full disk, one line, exit status 3.
+  subroutine check_field_space(out, sim, n)
+    type(output_t), intent(inout) :: out
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: n
+    character(len=:), allocatable :: err
+    integer(c_long) :: bytes
+    logical :: ok
+    bytes = int(sim%lp%nx, c_long)*int(sim%lp%ny, c_long)*48_c_long + 262144_c_long
+    err = ''
+    if (sim%dom%rank == 0) err = space_problem(sim%cfg%output_dir, sim%cfg%name//'.space', bytes)
+    ok = len(err) == 0
+    call MPI_Bcast(ok, 1, MPI_LOGICAL, 0, sim%dom%comm)
+    ! (rank 0's reason: the rank that prints and stores it)
+    if (.not. ok) &
+      call output_fail(out, sim, 'cannot write the field snapshot of step '//itoa(n)//' into '''// &
+                       sim%cfg%output_dir//'/'//sim%cfg%name//'.h5'': '//err//' (it needs '// &
+                       itoa(int(bytes/1024_c_long))//' KiB in output.dir); is the disk full?')
+  end subroutine check_field_space
 
 end module dkt_output

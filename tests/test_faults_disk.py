@@ -110,11 +110,22 @@ def test_full_disk_at_a_checkpoint_stops_cleanly(small_disk: Path, tmp_path: Pat
 
 @pytest.mark.parametrize("small_disk", [3], indirect=True)
 def test_full_disk_during_field_output_names_the_run_file(small_disk: Path) -> None:
+    """Field snapshots fill the disk: the run stops before the snapshot that does not fit
+    (exit 3, one error line naming the run file and the full disk), and closes its run file
+    with the series written so far and stop_reason naming the full disk. Before, an HDF5 write
+    failed: exit 3 with HDF5 stack dumps, stop_reason left at 'running' and no /particles."""
     out = small_disk / "run"
     proc = dktlbm(out, ["run.steps=2000", "run.checkpoint_every=0"])
-    assert proc.returncode != 0
+    assert proc.returncode == 3, proc.stdout + proc.stderr
     lines = errors(proc.stderr)
-    assert lines and all(str(out / "case1.h5") in line for line in lines), proc.stderr
+    assert len(lines) == 1, proc.stderr
+    assert str(out / "case1.h5") in lines[0] and "disk" in lines[0], lines[0]
+    assert "HDF5-DIAG" not in proc.stderr
+    with h5py.File(out / "case1.h5", "r") as h5:
+        reason = h5["run"].attrs["stop_reason"]
+        assert reason.startswith("error: ") and "field snapshot" in reason, reason
+        t = h5["particles/t"][()]
+        assert t.size > 1 and np.all(np.diff(t) > 0)
 
 
 def chk_name(step: int) -> str:
