@@ -83,8 +83,12 @@ contains
         end if
         j = j + 1
         cli%restart = trim(args(j))
-        ! an empty value (--restart '') would otherwise start a fresh run
+        ! an empty value (--restart '') would otherwise start a fresh run, and an option
+        ! (--restart --set output.dir=X) would be taken for the checkpoint's path
         if (len(cli%restart) == 0) err = RESTART_NEEDS
+        if (index(cli%restart, '--') == 1) &
+          err = RESTART_NEEDS//' (in ''--restart '//cli%restart//''' the option '''// &
+                cli%restart//''' stands where the file should)'
       case ('--check')
         cli%check = .true.
       case ('--print-defaults')

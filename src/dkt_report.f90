@@ -55,7 +55,12 @@ contains
         lp%u_scale_lb*lp%dx/lp%dt, ' cm/s: expected max Mach ', lp%mach, ', Reynolds ', lp%reynolds
       call log_line(trim(line))
       ! the weakly compressible error is O(Ma^2) (docs/model.md §1, "Mach-aware set-up")
-      write (line, '(a,es10.3e2,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
+      ! (three exponent digits only when two cannot hold it: '**********' otherwise)
+      if (abs(lp%mach) < 1.0e49_wp .and. abs(lp%mach) > 1.0e-49_wp) then
+        write (line, '(a,es10.3e2,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
+      else
+        write (line, '(a,es11.3e3,a)') 'compressibility: Ma^2 = ', lp%mach**2, ', error class '
+      end if
       line = trim(line)//' '//lp%compressibility
       if (cfg%lbm%mach > 0.0_wp) then
         write (line, '(a,f8.5,a,es10.3e2,a)') trim(line)//'; tau = ', lp%tau, &

@@ -654,10 +654,15 @@ def test_missing_namelist_file(tmp_path: Path) -> None:
     assert str(missing) in msg and "cannot open" in msg, msg
 
 
-@pytest.mark.parametrize("restart", [["--restart="], ["--restart", ""]], ids=["equals", "apart"])
+@pytest.mark.parametrize(
+    "restart",
+    [["--restart="], ["--restart", ""], ["--restart", "--set", "run.steps=3"]],
+    ids=["equals", "apart", "an-option"],
+)
 def test_an_empty_restart_value_is_refused(tmp_path: Path, restart: list[str]) -> None:
     """Catches: `--restart=` or `--restart ''` (an unset shell variable) taken as no restart at
-    all, which started a fresh run instead of the resumed one the user asked for."""
+    all, which started a fresh run instead of the resumed one the user asked for; and
+    `--restart --set ...` (the path forgotten), whose option was taken for the checkpoint."""
     scene, _ = write_scene(tmp_path)
     cwd = tmp_path / "cwd"
     cwd.mkdir()
@@ -1080,3 +1085,14 @@ def test_counts_of_one_are_singular(tmp_path: Path) -> None:
         assert re.search(r"\b1 ranks\b", proc.stdout) is None, proc.stdout
         pattern = next(ln for ln in proc.stdout.splitlines() if ln.startswith("DKT pattern"))
         assert "; 0 kissing episodes)" in pattern, pattern
+
+
+def test_the_summary_prints_a_huge_mach_number_as_a_number(tmp_path: Path) -> None:
+    """Catches: `compressibility: Ma^2 = **********` when Ma^2 needs a three-digit exponent (a
+    gravity of 1e200 cm/s^2 passes the input checks and --check reports the run it would be)."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = dkt([str(ROOT / "input" / "case1.nml"), "--check", "--set", "particles.gravity=1e200",
+                "--set", f"output.dir={tmp_path / 'out'}"], cwd)
+    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("compressibility:"))
+    assert "*" not in line and "E+194" in line, line

@@ -1051,9 +1051,18 @@ def save_figure(fig: Any, png: Path, pdf: bool) -> list[Path]:
 
 def guarded(body: Callable[[], int]) -> int:
     """Run `body`; a RunFileError, a missing executable (LaunchError) or an unwritable output
-    becomes `error: ...` on stderr and exit status 2, without a traceback."""
+    becomes `error: ...` on stderr and exit status 2, without a traceback. A reader that
+    stopped reading (`dkt-pattern run.h5 | head -1`) ends the command quietly, status 0."""
     try:
-        return body()
+        try:
+            return body()
+        finally:
+            sys.stdout.flush()
+    except BrokenPipeError:
+        # the rest of the output goes nowhere, as the shell's own commands do; the interpreter's
+        # final flush must not fail on the closed pipe either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (RunFileError, LaunchError) as exc:
         print(f"error: {exc}", file=sys.stderr)
     except OSError as exc:

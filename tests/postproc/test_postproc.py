@@ -529,3 +529,19 @@ def test_real_pair_run_diagnostics_agree_with_particles(tmp_path: Path) -> None:
     assert written.pattern == computed.pattern == r["pattern"]
     assert [t for e in written.episodes for t in (e.start, e.end)] == pytest.approx(
         [t for e in computed.episodes for t in (e.start, e.end)])
+
+
+def test_pattern_piped_into_head_ends_quietly(tmp_path: Path) -> None:
+    """`dkt-pattern run.h5 | head -1`: the reader may close the pipe before the command has
+    written (head has its line, or `| true`). The command must end with status 0 and nothing
+    on stderr, as the shell's own commands do; it used to print `error: output: Broken pipe`
+    and exit 2. Here the pipe is closed before the command writes anything."""
+    f = tmp_path / "rep.h5"
+    syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1))
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.Popen([sys.executable, str(POSTPROC / "pattern.py"), str(f)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()  # the reader is gone before the first line
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0, err
+    assert err == "", err
