@@ -14,7 +14,7 @@ module dkt_io_reopen
                   h5ldelete_f, h5dopen_f, h5dclose_f, h5dget_space_f, h5dset_extent_f, &
                   h5dget_type_f, h5dread_f, h5sclose_f, h5sget_simple_extent_dims_f, &
                   h5sget_simple_extent_ndims_f, h5tget_class_f, h5tget_size_f, h5tclose_f, &
-                  H5T_INTEGER_F, h5oopen_f, h5oclose_f, h5aopen_f, h5aread_f, h5aclose_f
+                  H5T_INTEGER_F, h5oclose_f
   implicit none
   private
   public :: io_reopen, io_read_series, io_run_id
@@ -354,23 +354,15 @@ contains
     end do
   end function ordered
 
-  !> The real attribute `aname` of the object at `path`.
+  !> The real attribute `aname` of the object at `path` (h5_real_attribute); a missing or
+  !! unreadable one stops the run as every failed call here does.
   subroutine read_attr(io, path, aname, value)
     type(io_t), intent(in) :: io
     character(len=*), intent(in) :: path, aname
     real(wp), intent(out) :: value
-    integer(hid_t) :: obj, attr
-    integer :: hdferr
-    call h5oopen_f(io%file_id, path, obj, hdferr)
-    call check(hdferr, 'h5oopen_f('//path//')', io%path)
-    call h5aopen_f(obj, aname, attr, hdferr)
-    call check(hdferr, 'h5aopen_f('//path//' '//aname//')', io%path)
-    call h5aread_f(attr, io%real_type, value, one, hdferr)
-    call check(hdferr, 'h5aread_f('//path//' '//aname//')', io%path)
-    call h5aclose_f(attr, hdferr)
-    call check(hdferr, 'h5aclose_f('//path//' '//aname//')', io%path)
-    call h5oclose_f(obj, hdferr)
-    call check(hdferr, 'h5oclose_f('//path//')', io%path)
+    logical :: found
+    call h5_real_attribute(io%file_id, path, aname, value, found)
+    if (.not. found) call check(-1, 'h5aread_f('//path//' '//aname//')', io%path)
   end subroutine read_attr
 
 end module dkt_io_reopen

@@ -103,10 +103,9 @@ contains
         ! become unstable, and then the guard's diagnosis (where, what to change) is the one
         ! to give.
         ! the particle speed guard is cheap (one test per particle), so it runs every step
-        ! (simulation_step, with the place check)
+        ! (simulation_step, with the place check; '' when a particle is out of place)
         call timer_start(PART_GUARDS)
-        fast = ''
-        if (sim%particles_move .and. len(failure) == 0) fast = sim%fast
+        fast = sim%fast
         if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
             last) then
           placed = failure

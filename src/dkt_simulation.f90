@@ -535,7 +535,7 @@ contains
     ! the entries of the reduction: ids (exact in 8 bytes), a flag, the pair's x, y, r
     integer, parameter :: S_ESCAPE = 1, S_PLACE = 2, S_FAST = 3, S_FINITE = 4, S_PAIR = 5
     real(wp) :: v(S_PAIR + 5)
-    integer :: k, m, escaped, place_id, fast_id
+    integer :: k, m, escaped, place_id, fast_id, ny
     failure = ''
     sim%fast = ''
     if (.not. (sim%particles_move .or. sim%pair_on .or. sim%window_on)) return
@@ -569,14 +569,13 @@ contains
       sim%pair_v = reshape(v(S_PAIR:S_PAIR + 5), [3, 2])
       if (v(S_FINITE) < 1.0_wp) sim%pair_v = ieee_value(1.0_wp, ieee_quiet_nan)
     end if
+    ny = sim%lp%ny
     escaped = nint(v(S_ESCAPE))
-    if (sim%window_on .and. escaped /= huge(0)) then
-      call grow_window(sim, n, escaped)
-      if (sim%particles_move) then
-        ! the places on the grown lattice (the window's growth is rare: a reduction of its own)
-        call check_particle_places(sim, n, place_id, failure)
-        call particles_agree(sim%parts, sim%dom, place_id, failure)
-      end if
+    if (sim%window_on .and. escaped /= huge(0)) call grow_window(sim, n, escaped)
+    if (sim%particles_move .and. sim%lp%ny /= ny) then
+      ! the places on the grown lattice (the window's growth is rare: a reduction of its own)
+      call check_particle_places(sim, n, place_id, failure)
+      call particles_agree(sim%parts, sim%dom, place_id, failure)
     else if (sim%particles_move) then
       call particles_agree(sim%parts, sim%dom, place_id, failure, lowest=nint(v(S_PLACE)))
     end if
