@@ -12,6 +12,8 @@ goes ahead. Before, the overwriting run replaced the live run's files and both e
 
 from __future__ import annotations
 
+import os
+import re
 import signal
 import subprocess
 import time
@@ -59,25 +61,26 @@ def start(out: Path, ranks: int = 2) -> subprocess.Popen[str]:
 
 
 def stop(proc: subprocess.Popen[str], how: signal.Signals) -> None:
-    import os
-
     os.killpg(proc.pid, how)
     proc.communicate(timeout=120)
 
 
 @pytest.mark.parametrize(
-    "extra", [["output.overwrite=.true."], [], ["restart"]], ids=["overwrite", "plain", "restart"]
+    ("sets", "resume"),
+    [
+        (["run.t_end=0.2", "output.overwrite=.true."], False),
+        (["run.t_end=0.2"], False),
+        (["run.t_end=100"], True),
+    ],
+    ids=["overwrite", "plain", "restart"],
 )
-def test_a_live_runs_directory_is_refused(tmp_path: Path, extra: list[str]) -> None:
+def test_a_live_runs_directory_is_refused(tmp_path: Path, sets: list[str], resume: bool) -> None:
     out = tmp_path / "run"
     first = start(out)
     try:
-        sets = [*SETS, "run.t_end=0.2"] + [s for s in extra if s != "restart"]
-        more = ["--restart", str(out / CHK)] if "restart" in extra else []
-        if more:
-            sets = [*SETS, "run.t_end=100"]
+        more = ["--restart", str(out / CHK)] if resume else []
         h5_before = (out / f"{SCENE}.h5").stat().st_ino
-        proc = run(f"{SCENE}.nml", 1, sets, out, extra=more, timeout=120, check=False)
+        proc = run(f"{SCENE}.nml", 1, [*SETS, *sets], out, extra=more, timeout=120, check=False)
         assert proc.returncode == 2, proc.stdout + proc.stderr
         errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("dktlbm: error")]
         assert len(errors) == 1, proc.stderr
@@ -98,9 +101,6 @@ def test_a_live_runs_directory_is_refused(tmp_path: Path, extra: list[str]) -> N
 def test_a_killed_run_leaves_no_stale_hold(tmp_path: Path) -> None:
     """The process that holds the directory (rank 0, named in the lock file) killed with
     SIGKILL: nothing of the run cleans up, yet the next run of the scene there goes ahead."""
-    import os
-    import re
-
     out = tmp_path / "run"
     first = start(out)
     holder = (out / f"{SCENE}.lock").read_text()
