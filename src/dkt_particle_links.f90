@@ -20,7 +20,8 @@ module dkt_particle_links
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_edge_rows
-  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
+  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node, &
+                       lattice_gather, lattice_scatter, lattice_gather_density
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_box
@@ -29,6 +30,9 @@ module dkt_particle_links
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
             particles_inner_write, particles_solid_field, particles_refill
+
+  !> 1/|e_d|^2 of the moving directions: 1 along the axes, 1/2 (exact) along the diagonals
+  real(wp), parameter :: inv_e2(1:8) = 1.0_wp/real(ex(1:8)**2 + ey(1:8)**2, wp)
 
 contains
 
@@ -59,7 +63,8 @@ contains
     dyp = py - p%y
     b = dxp*ex(d) + dyp*ey(d)
     c = dxp*dxp + dyp*dyp - p%r*p%r
-    t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))/(ex(d)**2 + ey(d)**2)
+    ! |e_d|^2 is 1 or 2: the division by it is the exact product with 1 or 1/2
+    t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))*inv_e2(d)
     q = min(max(t, 1.0e-6_wp), 1.0_wp)
   end function link_fraction
 
@@ -85,39 +90,58 @@ contains
   end function node_density
 
   !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
-  !! Within the slab and a row beyond it the mask says it (place_for_nodes); elsewhere only the
-  !! disks of the cells within rmax of the node are tested. Both need the present centres.
+  !! Within the slab and a row beyond it the mask says it (place_for_nodes); elsewhere
+  !! fluid_far tests the disks near the node. Both need the present centres.
   pure logical function is_fluid(ps, dom, i, jg)
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: i, jg
-    integer :: k, l, i1, i2, j1, j2, jc
-    real(wp) :: px, py
     is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
     if (.not. is_fluid) return
     if (jg - dom%y0 >= 0 .and. jg - dom%y0 <= dom%nyl + 1) then
-      is_fluid = .not. ps%solid(i, jg - dom%y0)
-      return
+      is_fluid = mask_fluid(ps, dom, i, jg - dom%y0)
+    else
+      is_fluid = fluid_far(ps, i, jg)
     end if
+  end function is_fluid
+
+  !> is_fluid for the node (i, j) of the slab's rows 0..nyl+1, which the mask covers.
+  pure logical function mask_fluid(ps, dom, i, j) result(fluid)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: i, j
+    fluid = i >= 1 .and. i <= dom%nx .and. &
+            (dom%periodic_y .or. (dom%y0 + j >= 1 .and. dom%y0 + j <= dom%ny))
+    if (fluid) fluid = .not. ps%solid(i, j)
+  end function mask_fluid
+
+  !> Whether the channel node (i, jg), beyond the mask's rows, lies outside every particle the
+  !! slab holds: only the disks of the cells within rmax of the node are tested.
+  pure logical function fluid_far(ps, i, jg) result(fluid)
+    type(particles_t), intent(in) :: ps
+    integer, intent(in) :: i, jg
+    integer :: k, l, i1, i2, j1, j2, jc
+    real(wp) :: px, py
     px = i - 0.5_wp
     py = jg - 0.5_wp
     call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
-      is_fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
+      fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
       return
     end if
+    fluid = .true.
     associate (c => ps%ncells)
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
-          if (inside(ps%p(c%items(l)), px, py)) is_fluid = .false.
+          if (inside(ps%p(c%items(l)), px, py)) fluid = .false.
         end do
       end do
       do l = 1, size(c%stray)
-        if (inside(ps%p(c%stray(l)), px, py)) is_fluid = .false.
+        if (inside(ps%p(c%stray(l)), px, py)) fluid = .false.
       end do
     end associate
-  end function is_fluid
+  end function fluid_far
 
   !> Place the present centres for is_fluid: in cells (a node lies only in disks whose centres
   !! are within rmax of it), and the mask of the nodes of rows 0..nyl+1 that lie inside a disk
@@ -222,13 +246,17 @@ contains
             py = jg - 0.5_wp
             dist2 = (px - p%x)**2 + (py - p%y)**2
             if (dist2 >= near2 .or. dist2 < deep2) cycle
-            if (.not. is_fluid(ps, dom, i, jg)) then
+            if (.not. mask_fluid(ps, dom, i, j)) then
               if (ps%fluid_interior) then
                 if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)
               end if
               cycle
             end if
             do d = 1, 8
+              ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
+              if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
+                if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
+              end if
               if (.not. inside(p, px + ex(d), py + ey(d))) cycle
               n = n + 1
               if (n > cap) then
@@ -240,7 +268,7 @@ contains
               ps%ly(n) = j
               ps%ld(n) = d
               ps%lq(n) = link_fraction(p, px, py, d)
-              ps%lff(n) = is_fluid(ps, dom, i - ex(d), jg - ey(d))
+              ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
             end do
           end do
         end do
@@ -361,79 +389,99 @@ contains
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
-    integer :: l, m, k, i, j, d, db, ilast, jlast
-    real(wp) :: q, fi, fib, fff, fb, rho, uwx, uwy, wall, xw, yw, fx, fy
+    integer, parameter :: XF = 1, YF = 2, DI = 3, DB = 4, X2 = 5, Y2 = 6, XS = 7, YS = 8
+    integer, parameter :: FI = 1, FIB = 2, FFF = 3, RHO = 4, FB = 5
+    integer :: l, m1, n, t, k, i, j, d
+    real(wp) :: q, uwx, uwy, wall, xw, yw, fx, fy
     if (j2 < j1) return
-    ilast = -1
-    jlast = -1
-    rho = 0.0_wp
     do l = 1, ps%nrows
       if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
     end do
     ! the links row by row (ps%lorder), each row's in their order (particle, column,
     ! direction): the lattice is read and written along its rows, and each row sum still adds
     ! its links in their order. A link reads only fluid nodes and writes only a solid slot that
-    ! no other link reads, so the order of the links does not change what they compute.
-    do m = ps%lstart(max(j1, 1)), ps%lstart(min(j2, dom%nyl) + 1) - 1
-      l = ps%lorder(m)
-      j = ps%ly(l)
-      k = ps%lp(l)
-      i = ps%lx(l)
-      d = ps%ld(l)
-      db = opp(d)
-      q = ps%lq(l)
-      associate (p => ps%p(k))
-        ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
-        ! the links of a node follow one another; a link writes only a solid slot, so the
-        ! density at x_f is the same for all of them
-        if (i /= ilast .or. j /= jlast) then
-          rho = node_density(f, i, j)
-          ilast = i
-          jlast = j
-        end if
-        call wall_of_link(p, i, dom%y0 + j, d, q, rho, xw, yw, uwx, uwy, wall)
-        fi = lattice_get(f, i, j, d)
-        fib = lattice_get(f, i, j, db)
-        fff = 0.0_wp
-        if (ps%lff(l)) fff = lattice_get(f, i - ex(d), j - ey(d), d)
-        select case (ps%scheme)
-        case (BB_YU)
-          if (ps%lff(l)) then
-            fb = ((1.0_wp - q)*fff + q*fi + q*fib + wall)/(1.0_wp + q)
-          else
-            fb = fi + wall
-          end if
-        case (BB_BFL)
-          if (q < 0.5_wp) then
+    ! no other link reads, so all reads can come before all writes: the populations are
+    ! gathered as lists, the links computed, and their results scattered.
+    m1 = ps%lstart(max(j1, 1))
+    n = ps%lstart(min(j2, dom%nyl) + 1) - m1
+    if (n <= 0) return
+    if (allocated(ps%gi)) then
+      if (size(ps%gi, 1) < n) deallocate (ps%gi, ps%gv)
+    end if
+    if (.not. allocated(ps%gi)) allocate (ps%gi(max(n, size(ps%lp)), 8), &
+                                          ps%gv(max(n, size(ps%lp)), 5))
+    associate (g => ps%gi, v => ps%gv)
+      do t = 1, n
+        l = ps%lorder(m1 + t - 1)
+        d = ps%ld(l)
+        g(t, XF) = ps%lx(l)
+        g(t, YF) = ps%ly(l)
+        g(t, DI) = d
+        g(t, DB) = opp(d)
+        ! the second fluid node x_f - e_i (Yu, BFL), or x_f again when there is none
+        g(t, X2) = merge(ps%lx(l) - ex(d), ps%lx(l), ps%lff(l))
+        g(t, Y2) = merge(ps%ly(l) - ey(d), ps%ly(l), ps%lff(l))
+        ! the solid slot that x_f pulls f_ibar from
+        g(t, XS) = ps%lx(l) + ex(d)
+        g(t, YS) = ps%ly(l) + ey(d)
+      end do
+      call lattice_gather(f, g(1:n, XF), g(1:n, YF), g(1:n, DI), v(1:n, FI))
+      call lattice_gather(f, g(1:n, XF), g(1:n, YF), g(1:n, DB), v(1:n, FIB))
+      call lattice_gather(f, g(1:n, X2), g(1:n, Y2), g(1:n, DI), v(1:n, FFF))
+      ! the density at x_f, once for the links of a node that follow one another
+      call lattice_gather_density(f, g(1:n, XF), g(1:n, YF), v(1:n, RHO))
+      do t = 1, n
+        l = ps%lorder(m1 + t - 1)
+        k = ps%lp(l)
+        i = g(t, XF)
+        j = g(t, YF)
+        d = g(t, DI)
+        q = ps%lq(l)
+        if (.not. ps%lff(l)) v(t, FFF) = 0.0_wp
+        associate (p => ps%p(k), fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
+                   fb_ => v(t, FB))
+          ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
+          call wall_of_link(p, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
+          select case (ps%scheme)
+          case (BB_YU)
             if (ps%lff(l)) then
-              fb = 2.0_wp*q*fi + (1.0_wp - 2.0_wp*q)*fff + wall
+              fb_ = ((1.0_wp - q)*fff_ + q*fi_ + q*fib_ + wall)/(1.0_wp + q)
             else
-              fb = fi + wall
+              fb_ = fi_ + wall
             end if
-          else
-            fb = (fi + (2.0_wp*q - 1.0_wp)*fib + wall)/(2.0_wp*q)
+          case (BB_BFL)
+            if (q < 0.5_wp) then
+              if (ps%lff(l)) then
+                fb_ = 2.0_wp*q*fi_ + (1.0_wp - 2.0_wp*q)*fff_ + wall
+              else
+                fb_ = fi_ + wall
+              end if
+            else
+              fb_ = (fi_ + (2.0_wp*q - 1.0_wp)*fib_ + wall)/(2.0_wp*q)
+            end if
+          case (BB_HALFWAY)
+            fb_ = fi_ + wall
+          case default
+            call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
+          end select
+          ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the
+          ! Galilean-invariant form replaces e by e - u_w
+          fx = ex(d)*(fi_ + fb_)
+          fy = ey(d)*(fi_ + fb_)
+          if (ps%galilean) then
+            fx = fx - uwx*(fi_ - fb_)
+            fy = fy - uwy*(fi_ - fb_)
           end if
-        case (BB_HALFWAY)
-          fb = fi + wall
-        case default
-          call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
-        end select
-        call lattice_set(f, i + ex(d), j + ey(d), db, fb)
-        ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the Galilean-invariant
-        ! form replaces e by e - u_w
-        fx = ex(d)*(fi + fb)
-        fy = ey(d)*(fi + fb)
-        if (ps%galilean) then
-          fx = fx - uwx*(fi - fb)
-          fy = fy - uwy*(fi - fb)
-        end if
-        associate (e => ps%lrow(l))
-          ps%rows(1, e) = ps%rows(1, e) + fx
-          ps%rows(2, e) = ps%rows(2, e) + fy
-          ps%rows(3, e) = ps%rows(3, e) + (xw - p%x)*fy - (yw - p%y)*fx
+          associate (e => ps%lrow(l))
+            ps%rows(1, e) = ps%rows(1, e) + fx
+            ps%rows(2, e) = ps%rows(2, e) + fy
+            ps%rows(3, e) = ps%rows(3, e) + (xw - p%x)*fy - (yw - p%y)*fx
+          end associate
         end associate
-      end associate
-    end do
+      end do
+      ! f_ibar(x_f, t+1) into the solid slot x_f + e_i
+      call lattice_scatter(f, g(1:n, XS), g(1:n, YS), g(1:n, DB), v(1:n, FB))
+    end associate
   end subroutine particles_bounce
 
   !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
@@ -489,6 +537,8 @@ contains
             px = i - 0.5_wp
             py = jg - 0.5_wp
             if (.not. inside(o, px, py)) cycle
+            ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
+            if (inside(p, px, py)) cycle
             if (.not. is_fluid(ps, dom, i, jg)) cycle
             ! mean density of the fluid neighbours in the same row: a row is never split
             ! between ranks, so the refill does not depend on the decomposition
