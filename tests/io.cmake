@@ -13,3 +13,8 @@ dkt_add_pytest(NAME io_readback FILE tests/test_io_readback.py LABELS mpi PROCES
 # The run file as ParaView reads it (pvpython with the XDMF reader): the main job's lattice.
 dkt_add_pytest(NAME paraview FILE tests/test_paraview.py LABELS paraview mpi PROCESSORS 2
   TIMEOUT 900)
+
+# Ten thousand disks as ParaView draws them: the particle grid with each disk's radius, glyphs
+# scaled by it.
+dkt_add_pytest(NAME paraview_disks FILE tests/test_paraview_disks.py LABELS paraview mpi
+  PROCESSORS 2 TIMEOUT 900)
