@@ -191,3 +191,19 @@ def sigterm_when_logged(
         os.kill(pid, signum)
     stdout, stderr = proc.communicate(timeout=timeout)
     return subprocess.CompletedProcess(cmd, proc.returncode, stdout, stderr)
+
+
+def pvpython_or_skip() -> str | None:
+    """ParaView's pvpython on PATH; the calling test module is skipped without it, unless
+    DKT_REQUIRE_PARAVIEW=1 (then None, and the test asserts on it)."""
+    import shutil
+
+    import pytest
+
+    path = shutil.which("pvpython")
+    if path is None and os.environ.get("DKT_REQUIRE_PARAVIEW") != "1":
+        pytest.skip(
+            "pvpython (ParaView) is not installed; set DKT_REQUIRE_PARAVIEW=1 to fail instead",
+            allow_module_level=True,
+        )
+    return path

@@ -16,8 +16,6 @@ Skipped when pvpython is missing, unless DKT_REQUIRE_PARAVIEW=1.
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -25,14 +23,9 @@ import h5py
 import numpy as np
 import pytest
 
-from dkt_run import ROOT, run
+from dkt_run import ROOT, pvpython_or_skip, run
 
-PVPYTHON = shutil.which("pvpython")
-if PVPYTHON is None and os.environ.get("DKT_REQUIRE_PARAVIEW") != "1":
-    pytest.skip(
-        "pvpython (ParaView) is not installed; set DKT_REQUIRE_PARAVIEW=1 to fail instead",
-        allow_module_level=True,
-    )
+PVPYTHON = pvpython_or_skip()
 
 NAME = "case1"
 T_END, FIELD_INTERVAL = 0.02, 0.005

@@ -17,8 +17,6 @@ Skipped when pvpython is missing, unless DKT_REQUIRE_PARAVIEW=1.
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -27,14 +25,9 @@ import h5py
 import numpy as np
 import pytest
 
-from dkt_run import ROOT, run
+from dkt_run import ROOT, pvpython_or_skip, run
 
-PVPYTHON = shutil.which("pvpython")
-if PVPYTHON is None and os.environ.get("DKT_REQUIRE_PARAVIEW") != "1":
-    pytest.skip(
-        "pvpython (ParaView) is not installed; set DKT_REQUIRE_PARAVIEW=1 to fail instead",
-        allow_module_level=True,
-    )
+PVPYTHON = pvpython_or_skip()
 
 
 N = 10032
