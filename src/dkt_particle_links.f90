@@ -16,7 +16,7 @@
 !> particles the slab does not hold.
 module dkt_particle_links
   use ieee_arithmetic, only: ieee_is_finite
-  use dkt_kinds, only: wp, cs2
+  use dkt_kinds, only: wp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_edge_rows
@@ -275,6 +275,8 @@ contains
       end associate
     end do
     ps%nlinks = n
+    ps%searches = ps%searches + 1
+    ps%links_found = ps%links_found + n
     call row_entries(ps, dom%nyl)
   contains
     subroutine resize(m)
@@ -487,11 +489,13 @@ contains
   !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
   !! are not fluid; this keeps them finite and ready for refilling).
   subroutine particles_interior(ps, dom, f)
-    type(particles_t), intent(in) :: ps
+    type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer :: k, i, j, jg, i1, i2, j1, j2
+    integer(i8) :: nodes
     real(wp) :: px, py, ux, uy
+    nodes = 0
     do k = 1, ps%n
       associate (p => ps%p(k))
         call box(p, dom, i1, i2, j1, j2)
@@ -503,10 +507,13 @@ contains
             if (.not. inside(p, px, py)) cycle
             call surface_velocity(p, px, py, ux, uy)
             call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
+            nodes = nodes + 1
           end do
         end do
       end associate
     end do
+    ps%resets = ps%resets + 1
+    ps%nodes_reset = ps%nodes_reset + nodes
   end subroutine particles_interior
 
   !> Nodes inside a particle's old disk (ps%old, the disks held before the move) and outside

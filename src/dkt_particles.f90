@@ -20,7 +20,7 @@ module dkt_particles
   use mpi_f08, only: MPI_Isend, MPI_Probe, MPI_Get_count, MPI_Recv, MPI_Waitall, MPI_Request, &
                      MPI_Status, MPI_Allgather, MPI_Allgatherv, MPI_Allreduce, MPI_Bcast, &
                      MPI_STATUS_IGNORE, MPI_STATUSES_IGNORE, MPI_INTEGER, MPI_CHARACTER, &
-                     MPI_MIN, MPI_SUM, MPI_IN_PLACE
+                     MPI_MIN, MPI_SUM, MPI_IN_PLACE, MPI_PROC_NULL
   use dkt_kinds, only: wp, mpi_wp, pi, i8
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_domain, only: domain_t, domain_rows_for
@@ -33,8 +33,8 @@ module dkt_particles
             particles_distribute, particles_exchange, particles_reduce_forces, particles_gather, &
             particles_resize_rows, particles_agree, particles_min, particles_lowest_free, &
             particles_first_above, particles_first_above_own, particles_reach_rows, &
-            particles_messages, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, &
-            BB_YU, BB_BFL
+            particles_messages, particles_work, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
+            BB_HALFWAY, BB_YU, BB_BFL
 
   !> One rigid disk, lattice units.
   type :: particle_t
@@ -55,6 +55,7 @@ module dkt_particles
   !> per row-sum entry: particle id, global row, force x, y, torque
   integer, parameter :: NENTRY = 5
   integer, parameter :: TAG_DOWN = 42, TAG_UP = 43
+  integer, parameter :: WP_BYTES = storage_size(1.0_wp)/8 !! bytes of a number in a message
 
   !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
   !! is a lattice node outside k.
@@ -119,6 +120,11 @@ module dkt_particles
     integer, allocatable :: mhome(:)
     !> MPI calls the particle messages made: to neighbours, and collectives
     integer(i8) :: neighbour_calls = 0, collective_calls = 0
+    !> the work they stand for (the `work per step` line, the cost model of docs/performance.md):
+    !! bytes sent to neighbours, link searches and the links they found, interior resets and
+    !! the nodes they set
+    integer(i8) :: neighbour_bytes = 0, searches = 0, links_found = 0
+    integer(i8) :: resets = 0, nodes_reset = 0
   end type particles_t
 
 contains
@@ -511,6 +517,8 @@ contains
     call MPI_Waitall(2, req, MPI_STATUSES_IGNORE)
     ! the messages sent (to MPI_PROC_NULL at an end: none travels)
     ps%neighbour_calls = ps%neighbour_calls + 2
+    if (dom%below /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nd*WP_BYTES
+    if (dom%above /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nu*WP_BYTES
   end subroutine swap
 
   !> Every particle of the scene, ascending id, on every rank: from their owners (output,
@@ -656,6 +664,18 @@ contains
     integer(i8) :: calls(2)
     calls = [ps%neighbour_calls, ps%collective_calls]
   end function particles_messages
+
+  !> This rank's particle work per step so far: the bytes sent to neighbours per step (over
+  !! `steps`), the links a search found and the nodes an interior reset set (means over the
+  !! searches and resets made), and the particles held now.
+  pure function particles_work(ps, steps) result(work)
+    type(particles_t), intent(in) :: ps
+    integer, intent(in) :: steps
+    real(wp) :: work(4)
+    work = [real(ps%neighbour_bytes, wp)/max(steps, 1), &
+            real(ps%links_found, wp)/max(ps%searches, 1_i8), &
+            real(ps%nodes_reset, wp)/max(ps%resets, 1_i8), real(ps%n, wp)]
+  end function particles_work
 
   pure subroutine pack_particle(p, v)
     type(particle_t), intent(in) :: p

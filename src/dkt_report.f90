@@ -15,7 +15,7 @@ module dkt_report
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
   use dkt_timers, only: timer_seconds, timer_name, N_PARTS
-  use dkt_particles, only: particles_messages
+  use dkt_particles, only: particles_messages, particles_work
   implicit none
   private
   public :: progress_t, report_summary, report_start, report_progress, report_performance
@@ -221,7 +221,27 @@ contains
       real(calls(2), wp)/max(steps, 1), ' collectives (the most of any rank; ', &
       sim%parts%ntotal, ' particles)'
     call log_line(trim(line))
+    call report_work(sim, steps)
   end subroutine report_messages
+
+  !> The `work per step` line, each figure the most of any rank: the cells of a slab, the
+  !! boundary links of a search and the interior nodes of a reset (means over the run), the
+  !! particles held at the end with the contact sub-steps of a step, and the bytes sent to
+  !! neighbouring slabs per step. docs/performance.md ("A cost model") prices each.
+  subroutine report_work(sim, steps)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: steps
+    real(wp) :: work(5)
+    character(len=240) :: line
+    work(1:4) = particles_work(sim%parts, steps)
+    work(5) = real(sim%dom%nx, wp)*sim%dom%nyl
+    call MPI_Allreduce(MPI_IN_PLACE, work, 5, MPI_WP, MPI_MAX, sim%dom%comm)
+    write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'work per step: ', nint(work(5), i8), &
+      ' cells, ', nint(work(2), i8), ' boundary links, ', nint(work(3), i8), &
+      ' interior nodes, ', nint(work(4), i8), ' particles held x ', sim%parts%substeps, &
+      ' sub-steps, ', nint(work(1), i8), ' bytes to neighbouring slabs (the most of any rank)'
+    call log_line(trim(line))
+  end subroutine report_work
 
   !> The `time per part` line: each part's share of the loop's wall time t, the mean over the
   !! ranks (dkt_timers says what each part holds; `other` is the rest: the step counters, the

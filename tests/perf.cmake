@@ -70,3 +70,16 @@ if(Python3_FOUND)
     RUN_SERIAL TRUE
     ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
 endif()
+
+# Benchmark (label perf): the cost model of a particle step (per cell, link, interior node and
+# particle sub-step) fitted on 1-rank runs of six scenes from 2 to 10 032 disks, checked on 2.
+if(Python3_FOUND)
+  add_test(NAME perf_cost_model
+    COMMAND "${Python3_EXECUTABLE}" "${CMAKE_CURRENT_SOURCE_DIR}/perf/cost_model.py"
+      --exe $<TARGET_FILE:dktlbm> --mpiexec "${MPIEXEC_EXECUTABLE}" --check-ranks 2 --repeats 3)
+  set_tests_properties(perf_cost_model PROPERTIES
+    LABELS perf
+    TIMEOUT 3600
+    RUN_SERIAL TRUE
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
+endif()
