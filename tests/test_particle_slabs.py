@@ -328,3 +328,31 @@ def test_the_segregation_index_of_two_sizes_is_their_mean_heights_apart(tmp_path
         got = h5["suspension/segregation"][()]
     assert got[0] == pytest.approx(0.2 / (NY * DX), rel=1e-9)
     assert np.allclose(got, want, rtol=1e-9, atol=1e-15)
+
+
+WORK = re.compile(
+    r"work per step: (\d+) cells, (\d+) boundary links, (\d+) interior nodes, (\d+) particles "
+    r"held x (\d+) sub-steps, (\d+) bytes to neighbouring slabs"
+)
+
+
+def test_work_per_step_is_each_slabs_own(tmp_path: Path) -> None:
+    """The `work per step` line (the figures of the cost model, docs/performance.md) counts a
+    slab's own work: on 1 rank the whole lattice, every disk and no bytes to neighbours; on 3
+    ranks the largest slab (33 of the 97 rows), fewer links, interior nodes and disks than the
+    whole, and bytes sent across the slab faces."""
+    scene = box_scene(tmp_path / "box.nml", 6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])
+    seen = {}
+    for ranks in (1, 3):
+        log = launch(scene, ranks, tmp_path / f"run{ranks}",
+                     ["--set", "run.steps=20", "--set", "run.checkpoint_every=0"])
+        found = WORK.search(log)
+        assert found, log
+        seen[ranks] = [int(v) for v in found.groups()]
+    cells, links, interior, held, _, sent = seen[1]
+    assert (cells, held, sent) == (NX * NY, 36, 0)
+    assert links > 0 and interior > 0
+    cells3, links3, interior3, held3, _, sent3 = seen[3]
+    assert cells3 == NX * -(-NY // 3)
+    assert 0 < links3 < links and 0 < interior3 < interior and 0 < held3 < held
+    assert sent3 > 0
