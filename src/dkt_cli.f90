@@ -59,11 +59,14 @@ contains
     type(cli_t), intent(out) :: cli
     character(len=:), allocatable, intent(out) :: err
     character(len=:), allocatable :: arg
-    integer :: j
+    integer :: j, n
     err = ''
     cli%nml_file = ''
     cli%restart = ''
-    allocate (cli%overrides(0))
+    ! room for every --set at once (an argument is at most one), trimmed at the end: appending
+    ! one by one would copy the list at each, quadratic in the number of options
+    allocate (cli%overrides(count(args == '--set') + count(index(args, '--set=') == 1)))
+    n = 0
     j = 0
     do while (j < size(args))
       j = j + 1
@@ -114,6 +117,7 @@ contains
       end select
       if (len(err) > 0) return
     end do
+    if (n < size(cli%overrides)) cli%overrides = cli%overrides(1:n)
     if (len(cli%nml_file) == 0 .and. .not. (cli%help .or. cli%version .or. cli%print_defaults)) &
       err = 'no namelist file given'//NL//USAGE//NL//'see dktlbm --help'
   contains
@@ -125,7 +129,8 @@ contains
       else if (index(spec, '=') == 0 .or. index(spec, '.') == 0) then
         err = 'option --set '//spec//': expected --set group.key=value, e.g. --set lbm.tau=0.7'
       else
-        cli%overrides = [character(len=len(cli%overrides)) :: cli%overrides, spec]
+        n = n + 1
+        cli%overrides(n) = spec
       end if
     end subroutine add_override
   end subroutine parse_arguments
