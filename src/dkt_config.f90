@@ -13,7 +13,8 @@
 !>   components (cfg%output_dir, cfg%given, lp%d1, ...) and take only types from here.
 module dkt_config
   use dkt_kinds, only: wp, MAX_PARTICLES
-  use dkt_registry, only: registry_t, find_key, check_key, value_text, allowed_text, final_size
+  use dkt_registry, only: registry_t, find_key, check_key, value_text, allowed_text, final_size, &
+                          blame
   use dkt_namelist, only: parse_namelist, apply_override
   use dkt_config_types, only: config_t, domain_cfg_t, fluid_cfg_t, lbm_cfg_t, inlet_cfg_t, &
                               initial_cfg_t, particle_cfg_t, particles_cfg_t, pair_cfg_t, &
@@ -22,6 +23,7 @@ module dkt_config
                               particles_allocate, config_choices
   use dkt_cli, only: cli_t, parse_command_line, parse_arguments, read_text_file, print_help
   use dkt_config_scene, only: expand
+  use dkt_text, only: fmt_num
   use dkt_config_lattice, only: lattice_params_t, particles_lb_t
   use dkt_config_checks_run, only: config_checks
   implicit none
@@ -87,6 +89,8 @@ contains
     call namelist_text(reg, defaults, found)
     call move_alloc(found, cfg%given)
     cfg%output_dir = config_output_dir(cfg)
+    if (cfg%pair%gamma > 0.0_wp) call pair_owns_particles(cfg, reg, defaults, err)
+    if (len(err) > 0) return
     call expand(cfg, reg, err)
     if (len(err) > 0) return
     ! D_2 = pair.d1/pair.gamma is the one value expand derives that its key's range can refuse
@@ -296,6 +300,35 @@ contains
     end do
     text = text//'/'//NL
   end subroutine namelist_text
+
+  !> A pair scene (pair.gamma > 0) sets particles 1 and 2 itself (expand): a key of theirs in
+  !! &particles would be discarded, so it is refused when a --set gives it, or the file gives it
+  !! a value other than its default (a file that --print-defaults wrote gives the defaults).
+  subroutine pair_owns_particles(cfg, reg, defaults, err)
+    type(config_t), intent(in) :: cfg
+    type(registry_t), intent(in) :: reg
+    type(text_t), intent(in) :: defaults(:)
+    character(len=:), allocatable, intent(out) :: err
+    character(len=*), parameter :: OWNED(8) = [character(len=8) :: 'diameter', 'density', &
+                                                              'x', 'y', 'u', 'v', 'omega', 'motion']
+    integer :: j, idx
+    err = ''
+    do j = 1, size(OWNED)
+      idx = find_key(reg, 'particles', trim(OWNED(j)))
+      associate (k => reg%keys(idx))
+        if (len(k%origin) == 0) cycle
+        if (index(k%origin, '--set ') == 0 .and. value_text(k) == defaults(idx)%s) cycle
+        err = blame(reg, 'particles.'//trim(OWNED(j)), cfg%file)//': &particles '// &
+              trim(OWNED(j))//' = '//value_text(k)//' in a pair scene (&pair gamma = '// &
+              fmt_num(cfg%pair%gamma)//'), which sets particles 1 and 2 itself and would '// &
+              'discard it: diameters pair.d1 and pair.d1/pair.gamma, density pair.density, '// &
+              'centres from pair.y_upper, pair.dh and pair.x_offset, free and at rest; '// &
+              'allowed: leave particles.'//trim(OWNED(j))//' out and set the &pair keys, '// &
+              'or pair.gamma = 0 and every particle in &particles'
+        return
+      end associate
+    end do
+  end subroutine pair_owns_particles
 
   !> The output directory: output%dir, or runs/<name> when it is empty.
   function config_output_dir(cfg) result(dir)

@@ -241,6 +241,21 @@ CASES = {
         base="case1.nml",
         pieces=["{file}", "--set pair.gamma=0.5", "&pair", "gamma = 0.5", "1 <= gamma <= 100"],
     ),
+    # a pair scene sets particles 1 and 2 from &pair: a key of theirs in &particles would be
+    # range-checked and then discarded, so it is refused, from the command line or the file
+    "pair-scene-particle-diameter": Case(
+        args=["--set", "particles.diameter=1e308"],
+        base="case1.nml",
+        pieces=["{file}", "--set particles.diameter=1e308", "&particles", "diameter = 1.0e308",
+                "&pair gamma = 2.0", "sets particles 1 and 2", "pair.gamma = 0"],
+    ),
+    "pair-scene-particle-motion-in-file": Case(
+        "  gravity = 980.0",
+        "  gravity = 980.0, motion = 'fixed'",
+        base="case1.nml",
+        pieces=["{file}:{line}:", "&particles", "motion = 'fixed'", "sets particles 1 and 2",
+                "leave particles.motion out"],
+    ),
     # D_h = 1.0 D_1 with gamma = 1: the centres start exactly one diameter apart, the disks
     # touch; the bound is checked in test_pair_dh_bound_is_the_contact_distance below
     "pair-dh-at-contact": Case(
