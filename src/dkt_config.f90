@@ -309,8 +309,9 @@ contains
     type(registry_t), intent(in) :: reg
     type(text_t), intent(in) :: defaults(:)
     character(len=:), allocatable, intent(out) :: err
-    character(len=*), parameter :: OWNED(8) = [character(len=8) :: 'diameter', 'density', &
-                                                              'x', 'y', 'u', 'v', 'omega', 'motion']
+    !> the keys of &particles that &pair sets for particles 1 and 2
+    character(len=*), parameter :: OWNED(8) = &
+                  [character(len=8) :: 'diameter', 'density', 'x', 'y', 'u', 'v', 'omega', 'motion']
     integer :: j, idx
     err = ''
     do j = 1, size(OWNED)
