@@ -310,8 +310,9 @@ contains
     type(text_t), intent(in) :: defaults(:)
     character(len=:), allocatable, intent(out) :: err
     !> the keys of &particles that &pair sets for particles 1 and 2
-    character(len=*), parameter :: OWNED(8) = [character(len=8) :: 'diameter', 'density', &
-                                                              'x', 'y', 'u', 'v', 'omega', 'motion']
+    character(len=8), parameter :: OWNED(8) = ['diameter', 'density ', 'x       ', &
+                                               'y       ', 'u       ', 'v       ', &
+                                               'omega   ', 'motion  ']
     integer :: j, idx
     err = ''
     do j = 1, size(OWNED)
