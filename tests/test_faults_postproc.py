@@ -181,3 +181,38 @@ def test_nan_gap_is_classified_up_to_it_with_a_warning(finished: Path, tmp_path:
     assert pair.pattern == "never" and not pair.episodes
     p = cli("pattern", h5)
     assert p.returncode == 0 and str(h5) in p.stderr and "NaN" in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("attr", ["dx", "dt", "steps", "d1", "gamma", "t_ref", "kiss_enter"])
+def test_a_garbage_run_attribute_is_one_error_line(finished: Path, tmp_path: Path,
+                                                   attr: str) -> None:
+    """An attribute of /run (and /diagnostics) that must be a number and holds text (a damaged
+    or foreign file): every
+    reader that needs it (dkt-pattern, dkt-gap, dkt-trajectories, dkt-field) exits 2 with one
+    `error:` line naming the file and the attribute, never a traceback; the file is unchanged."""
+    h5 = tmp_path / "case1.h5"
+    shutil.copy(finished / "case1.h5", h5)
+    with h5py.File(h5, "a") as f:
+        groups = [g for g in ("run", "diagnostics") if attr in f[g].attrs]
+        assert groups, attr
+        for g in groups:
+            del f[g].attrs[attr]
+            f[g].attrs[attr] = "garbage"
+    before = tree_digest(tmp_path)
+    failed = 0
+    for name, args in (("pattern", []), ("gap", ["-o", tmp_path / "g.png"]),
+                       ("trajectories", ["-o", tmp_path / "t.png"]),
+                       ("field", ["-o", tmp_path / "f.png"])):
+        proc = cli(name, h5, *args)
+        assert "Traceback" not in proc.stderr, f"dkt-{name}:\n{proc.stderr}"
+        if proc.returncode == 0:
+            continue  # this reader does not need the attribute
+        failed += 1
+        lines = [line for line in proc.stderr.splitlines() if line.startswith("error:")]
+        assert proc.returncode == 2 and len(lines) == 1, f"dkt-{name}:\n{proc.stderr}"
+        assert str(h5) in lines[0] and f"attribute {attr} = 'garbage'" in lines[0], lines[0]
+    # at least one reader needs each of these attributes
+    assert failed > 0
+    for png in tmp_path.glob("*.png"):
+        png.unlink()
+    assert tree_digest(tmp_path) == before

@@ -293,8 +293,28 @@ def run_namelist(h5: Any) -> str:
     return ""
 
 
-def _num(value: Any) -> float:
-    return float(np.asarray(value, dtype=float).ravel()[0])
+class NotANumber(ValueError):
+    """A stored value that must be a number and is not: open_h5 turns it into a RunFileError
+    naming the file."""
+
+
+def _num(value: Any, name: str | None = None) -> float:
+    """The number a stored attribute holds (an array of one, an integer or a float); NotANumber
+    (naming the attribute `name`, when given) for anything else."""
+    try:
+        return float(np.asarray(value, dtype=float).ravel()[0])
+    except (TypeError, ValueError, IndexError, OverflowError):
+        shown = repr(value)
+        if len(shown) > 60:
+            shown = shown[:57] + "..."
+        what = f"attribute {name}" if name else "a stored value"
+        raise NotANumber(f"{what} = {shown} is not a number (a damaged or foreign run "
+                         "file?)") from None
+
+
+def _num_or(attrs: Any, key: str, default: float) -> float:
+    """_num of attribute `key` of `attrs`, or `default` when there is none."""
+    return _num(attrs[key], key) if key in attrs else default
 
 
 def numeric_attrs(attrs: Any) -> dict[str, float]:
@@ -335,6 +355,8 @@ def open_h5(path: str | Path) -> Iterator[Any]:
         raise RunFileError(path, f"cannot open as HDF5: {exc}") from None
     try:
         yield h5
+    except NotANumber as exc:
+        raise RunFileError(path, str(exc)) from None
     finally:
         h5.close()
 
@@ -436,9 +458,9 @@ def _diameters(settings: RunSettings, count: int, diag: dict[str, Any] | None,
         d[0] = stored["d1"]
     if diag is not None and count >= 2 and np.isnan(d[:2]).any():
         a = diag["attrs"]
-        if "d1" in a and "gamma" in a and _num(a["gamma"]) > 0:
-            d1 = _num(a["d1"])
-            d[0], d[1] = d1, d1 / _num(a["gamma"])
+        if "d1" in a and "gamma" in a and _num(a["gamma"], "gamma") > 0:
+            d1 = _num(a["d1"], "d1")
+            d[0], d[1] = d1, d1 / _num(a["gamma"], "gamma")
     if np.isnan(d).any():
         # &pair gamma > 0 writes particles 1 (D_1) and 2 (D_1/gamma): the namelist in /run may
         # be the input as given, before that expansion.
@@ -489,7 +511,7 @@ def run_t_ref(path: str | Path) -> float:
     with open_h5(path) as h5:
         attrs = h5["run"].attrs if "run" in h5 else {}
         if "t_ref" in attrs:
-            return _num(attrs["t_ref"])
+            return _num(attrs["t_ref"], "t_ref")
         text = run_namelist(h5)
     try:
         return RunSettings(text).number("run", "t_ref")
@@ -519,7 +541,7 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
         if a.shape[0] != t.size:
             raise RunFileError(path, f"/particles/{name} has {a.shape[0]} samples, t {t.size}")
         series[name] = a
-    count = int(_num(p.attrs["count"])) if "count" in p.attrs else series["x"].shape[1]
+    count = int(_num(p.attrs["count"], "count")) if "count" in p.attrs else series["x"].shape[1]
     count = min(count, series["x"].shape[1])
     if count < need:
         noun = "particle" if count == 1 else "particles"
@@ -531,9 +553,9 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
     run_attrs = h5["run"].attrs if "run" in h5 else {}
     settings = RunSettings(run_namelist(h5))
     numbers = numeric_attrs(run_attrs)
-    dx = _num(run_attrs["dx"]) if "dx" in run_attrs else math.nan
-    dt = _num(run_attrs["dt"]) if "dt" in run_attrs else math.nan
-    steps = int(_num(run_attrs["steps"])) if "steps" in run_attrs else 0
+    dx = _num_or(run_attrs, "dx", math.nan)
+    dt = _num_or(run_attrs, "dt", math.nan)
+    steps = int(_num_or(run_attrs, "steps", 0))
 
     diag = _read_diagnostics(h5)
     a = diag["attrs"] if diag is not None else {}
@@ -543,13 +565,13 @@ def _read_run(path: Path, h5: Any, need: int) -> Run:
         if attr in numbers:
             return numbers[attr]
         if attr in a:
-            return _num(a[attr])
+            return _num(a[attr], attr)
         return settings.number(group, key)
 
     t_ref = scale("t_ref", "run", "t_ref")
     gravity = scale("gravity", "particles", "gravity")
     # h_ref = g t_ref^2, as the program defines and stores it
-    h_ref = numbers.get("h_ref", _num(a["h_ref"]) if "h_ref" in a else gravity * t_ref**2)
+    h_ref = numbers.get("h_ref", _num_or(a, "h_ref", gravity * t_ref**2))
     return Run(
         path=path,
         name=path.stem,
@@ -742,7 +764,7 @@ def run_until(run: Run, t_end: float) -> Run:
         ends = np.asarray(diag.get("episodes_end", np.zeros(0)), dtype=float)
         keep = starts <= last
         a = diag["attrs"]
-        was_open = bool(_num(a["open_episode"])) if "open_episode" in a else False
+        was_open = bool(_num_or(a, "open_episode", 0.0))
         # open at the cut: ending after it, or the run's open episode with none cut away
         still = bool(keep.any() and (ends[keep][-1] > last or (keep.all() and was_open)))
         cut["episodes_start"] = starts[keep]
@@ -765,9 +787,13 @@ def pair_of(run: Run, limits: dict[str, float] | None = None,
     if run.count < 2:
         raise RunFileError(run.path, f"the run has {run.count} particle; a pair needs 2")
     diag = run.diagnostics
-    if not from_particles and diag is not None and all(k in diag for k in ("t", "dr")):
-        return _pair_from_diagnostics(run, diag, limits)
-    return _pair_from_particles(run, limits)
+    try:
+        if not from_particles and diag is not None and all(k in diag for k in ("t", "dr")):
+            return _pair_from_diagnostics(run, diag, limits)
+        return _pair_from_particles(run, limits)
+    except NotANumber as exc:
+        # the attributes were read with the file open; the file is named here
+        raise RunFileError(run.path, str(exc)) from None
 
 
 def _limits(run: Run, d1: float, limits: dict[str, float] | None,
@@ -778,7 +804,7 @@ def _limits(run: Run, d1: float, limits: dict[str, float] | None,
     stored = {k: run.run_attrs.get(f"kiss_{k}") for k in LIMIT_KEYS}
     for key in ("enter_cells", "release_cells"):
         if stored[key] is None and attrs and f"kiss_{key}" in attrs:
-            stored[key] = _num(attrs[f"kiss_{key}"])
+            stored[key] = _num(attrs[f"kiss_{key}"], f"kiss_{key}")
     base = {k: v if v is not None else run.settings.number("diagnostics", k)
             for k, v in stored.items()}
     given = {k: v for k, v in (limits or {}).items() if v is not None}
@@ -814,12 +840,12 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
     a = diag["attrs"]
     t = diag["t"].ravel()
     dr = diag["dr"].ravel()
-    d1 = _num(a["d1"]) if "d1" in a else float(np.nanmax(run.diameters[:2]))
-    gamma = _num(a["gamma"]) if "gamma" in a else float(
+    d1 = _num(a["d1"], "d1") if "d1" in a else float(np.nanmax(run.diameters[:2]))
+    gamma = _num(a["gamma"], "gamma") if "gamma" in a else float(
         np.nanmax(run.diameters[:2]) / np.nanmin(run.diameters[:2]))
     dx = diag["dx"].ravel() if "dx" in diag else np.full_like(t, math.nan)
     dy = diag["dy"].ravel() if "dy" in diag else np.full_like(t, math.nan)
-    dh = _num(a["dh"]) if "dh" in a else float(abs(dy[0]) / d1)
+    dh = _num(a["dh"], "dh") if "dh" in a else float(abs(dy[0]) / d1)
     re_p, cd_p = reynolds_and_drag(run)
     same_t = run.t.size == t.size
     re = diag["re"] if "re" in diag else (re_p[:, :2] if same_t else np.full((t.size, 2), np.nan))
@@ -832,9 +858,8 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
         source = "computed from /diagnostics/dr with the given thresholds"
     else:
         stored = run.run_attrs
-        enter = _num(a["kiss_enter"]) if "kiss_enter" in a else stored.get("kiss_enter", math.nan)
-        release = _num(a["kiss_release"]) if "kiss_release" in a else stored.get(
-            "kiss_release", math.nan)
+        enter = _num_or(a, "kiss_enter", stored.get("kiss_enter", math.nan))
+        release = _num_or(a, "kiss_release", stored.get("kiss_release", math.nan))
         if not (math.isfinite(enter) and math.isfinite(release)):
             lim = _limits(run, d1, None, a)
         else:
@@ -854,7 +879,7 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
         else:
             starts = diag.get("episodes_start", np.zeros(0))
             ends = diag.get("episodes_end", np.zeros(0))
-            is_open = bool(_num(a["open_episode"])) if "open_episode" in a else False
+            is_open = bool(_num_or(a, "open_episode", 0.0))
             episodes = []
             for k, (t0, t1) in enumerate(zip(starts, ends, strict=False)):
                 inside = (t >= t0) & (t <= t1)
@@ -938,8 +963,8 @@ def run_status(path: str | Path) -> str:
             if "steps" not in a or "dt" not in a:
                 return "failed"
             t = np.asarray(h5["particles"]["t"][()], dtype=float)
-            end = _num(a["steps"]) * _num(a["dt"])
-            done = t.size > 0 and t[-1] >= end - 0.5 * _num(a["dt"])
+            end = _num(a["steps"], "steps") * _num(a["dt"], "dt")
+            done = t.size > 0 and t[-1] >= end - 0.5 * _num(a["dt"], "dt")
             return "finished" if done else "failed"
     except (RunFileError, OSError, KeyError, ValueError):
         return "failed"
@@ -982,7 +1007,7 @@ def _field_times(path: Path, h5: Any) -> list[tuple[str, float]]:
     out = []
     for name, g in h5["fields"].items():
         if "time" in g.attrs:
-            out.append((name, _num(g.attrs["time"])))
+            out.append((name, _num(g.attrs["time"], "time")))
     if not out:
         raise RunFileError(path, "/fields holds no snapshots")
     return sorted(out, key=lambda item: item[1])
@@ -1008,11 +1033,14 @@ def read_field(path: str | Path, name: str = "vorticity", time: float | None = N
             else:
                 data = np.asarray(g[name][()], dtype=float)
             solid = np.asarray(g["particle"][()]) > 0 if "particle" in g else None
-            dx = _num(h5["run"].attrs["dx"])
+            dx = _num(h5["run"].attrs["dx"], "dx")
         except KeyError as exc:
             raise RunFileError(path, f"/fields/{group} lacks {exc}") from None
-        step = int(_num(g.attrs["step"])) if "step" in g.attrs else -1
-        offset = _num(g.attrs["window_offset"]) if "window_offset" in g.attrs else 0.0
+        if not (math.isfinite(dx) and dx > 0):
+            raise RunFileError(path, f"attribute dx = {dx!r} is not a lattice spacing (a "
+                               "damaged or foreign run file?)")
+        step = int(_num(g.attrs["step"], "step")) if "step" in g.attrs else -1
+        offset = _num_or(g.attrs, "window_offset", 0.0)
     return Snapshot(name, group, t, step, offset, dx, np.asarray(data, dtype=float), solid)
 
 
@@ -1050,8 +1078,9 @@ def save_figure(fig: Any, png: Path, pdf: bool) -> list[Path]:
 
 
 def guarded(body: Callable[[], int]) -> int:
-    """Run `body`; a RunFileError, a missing executable (LaunchError) or an unwritable output
-    becomes `error: ...` on stderr and exit status 2, without a traceback. A reader that
+    """Run `body`; a RunFileError, a missing executable (LaunchError), a stored value that is not
+    a number (NotANumber) or an unwritable output becomes `error: ...` on stderr and exit
+    status 2, without a traceback. A reader that
     stopped reading (`dkt-pattern run.h5 | head -1`) ends the command quietly, status 0."""
     try:
         try:
@@ -1063,7 +1092,7 @@ def guarded(body: Callable[[], int]) -> int:
         # final flush must not fail on the closed pipe either
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (RunFileError, LaunchError) as exc:
+    except (RunFileError, LaunchError, NotANumber) as exc:
         print(f"error: {exc}", file=sys.stderr)
     except OSError as exc:
         where = exc.filename if exc.filename else "output"
