@@ -9,8 +9,8 @@ module dkt_config_checks_run
   use dkt_registry, only: registry_t, check_key
   use dkt_text, only: quoted, fmt_num, itoa
   use dkt_config_types, only: config_t, MAX_STEPS
-  use dkt_config_scene, only: pair_d1, kiss_thresholds, dx_knob, velocity_scale_source, &
-                              pair_named
+  use dkt_config_scene, only: pair_d1, kiss_thresholds, kiss_enter_cells, dx_knob, &
+                              velocity_scale_source, pair_named
   use dkt_config_lattice, only: lattice_params_t, lattice_from
   use dkt_config_checks, only: check_t, chk_domain, chk_particles, chk_contacts, chk_pair, &
                                chk_window, val, src, from, item, dx_text, power, round6, &
@@ -383,14 +383,24 @@ contains
   end subroutine meets
 
   !> The episode thresholds of &diagnostics (in spacings) leave a hysteresis: release > enter.
+  !! With enter_cells = 0 the entry gap follows collision.range (kiss_enter_cells), and the
+  !! message says so.
   subroutine chk_thresholds(ck, err)
     type(check_t), intent(inout), target :: ck
     character(len=:), allocatable, intent(inout) :: err
     real(wp) :: d1, enter, release
+    character(len=:), allocatable :: cells_rule, smaller
     type(config_t), pointer :: c
     c => ck%c
     d1 = pair_d1(c)/c%lbm%dx
     call kiss_thresholds(c, enter, release)
+    cells_rule = ''
+    smaller = 'enter_cells, enter_d1'
+    if (c%diagnostics%enter_cells <= 0.0_wp) then
+      cells_rule = ' (0: collision.range + 1 = '//fmt_num(kiss_enter_cells(c))// &
+                   ' spacings, collision.range = '//val(ck, 'collision', 'range')//')'
+      smaller = 'collision.range, enter_d1, or enter_cells > 0'
+    end if
     associate (g => c%diagnostics)
       if (release <= enter) &
         err = from(ck, 'diagnostics.release_cells diagnostics.release_d1 '// &
@@ -400,10 +410,10 @@ contains
               val(ck, 'diagnostics', 'release_d1')//' give a release gap of '// &
               fmt_num(release)//' spacings, not above the entry gap of '// &
               fmt_num(enter)//' spacings from enter_cells = '// &
-              val(ck, 'diagnostics', 'enter_cells')//' and enter_d1 = '// &
+              val(ck, 'diagnostics', 'enter_cells')//cells_rule//' and enter_d1 = '// &
               val(ck, 'diagnostics', 'enter_d1')//' (D_1 = '//fmt_num(d1)// &
               ' spacings); allowed: release_cells > '//fmt_num(enter)//' or release_d1 > '// &
-              fmt_num(enter/d1)//', or a smaller entry gap (enter_cells, enter_d1)'
+              fmt_num(enter/d1)//', or a smaller entry gap ('//smaller//')'
     end associate
   end subroutine chk_thresholds
 

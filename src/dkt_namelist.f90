@@ -331,6 +331,13 @@ contains
         err = loc//': '//item//': '//base//' is not an array; write '//base//' = value'
         return
       end if
+      if (name(len(name):) /= ')' .or. index(name(p + 1:), '(') > 0) then
+        ! x(1)%re, x(1)(2), x(1: a component or a second index is not an element of an array
+        err = loc//': '//item//': '''//name//''' is not an element of '//base//': write '// &
+              base//'(i), '//base//'(a:b) or '//base//'(a:b:s): one index in one pair of '// &
+              'parentheses, nothing after them'
+        return
+      end if
       call select_elements(name(p + 1:len(name) - 1), base, n, first, step, slots, open_end, &
                            why)
       if (len(why) > 0) then
@@ -750,16 +757,20 @@ contains
     s = file//':'//itoa(line)
   end function at
 
+  !> The values as a message shows them: the first SHOWN of a longer list, then how many there
+  !! are (a refused list of 10^5 values is not echoed whole).
   function join_values(vals) result(s)
     type(token_t), intent(in) :: vals(:)
     character(len=:), allocatable :: s
+    integer, parameter :: SHOWN = 10
     integer :: j, n
     n = 0
     call append_text(s, n, '')
-    do j = 1, size(vals)
+    do j = 1, min(size(vals), SHOWN)
       if (j > 1) call append_text(s, n, ', ')
       call append_text(s, n, display(vals(j)))
     end do
+    if (size(vals) > SHOWN) call append_text(s, n, ', ... ('//itoa(size(vals))//' values)')
     s = s(:n)
   end function join_values
 

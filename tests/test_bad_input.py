@@ -241,6 +241,23 @@ CASES = {
         base="case1.nml",
         pieces=["{file}", "--set pair.gamma=0.5", "&pair", "gamma = 0.5", "1 <= gamma <= 100"],
     ),
+    # a component or a second index after an element is not an element: named whole, not
+    # read as an index with its last character cut off
+    "element-with-a-component": Case(
+        args=["--set", "particles.x(1)%re=1"],
+        base="single.nml",
+        pieces=["{file}", "--set particles.x(1)%re=1", "&particles",
+                "'x(1)%re' is not an element of x", "x(i), x(a:b) or x(a:b:s)"],
+    ),
+    # with enter_cells = 0 the entry gap is collision.range + 1: the message names the range
+    # that set it, and offers a smaller one
+    "release-gap-below-the-range-rule": Case(
+        args=["--set", "lbm.cells_per_diameter=8", "--set", "collision.range=3"],
+        base="case1.nml",
+        pieces=["{file}", "--set collision.range=3", "&diagnostics", "release_cells = 4.0",
+                "collision.range + 1 = 4.0 spacings", "collision.range = 3.0",
+                "a smaller entry gap (collision.range"],
+    ),
     # a pair scene sets particles 1 and 2 from &pair: a key of theirs in &particles would be
     # range-checked and then discarded, so it is refused, from the command line or the file
     "pair-scene-particle-diameter": Case(
@@ -523,6 +540,23 @@ def test_bad_input_stops_every_rank_with_one_clear_message_and_no_output(
     for piece in case.pieces:
         piece = piece.format(file=scene, line=line)
         assert piece in msg, f"{piece!r} missing from the message:\n{msg}"
+
+
+def test_a_refused_long_list_is_not_echoed_whole(tmp_path: Path) -> None:
+    """100 000 values for the one x of input/single.nml: refused, with the first values and the
+    count, not the whole list (1 MB of message before)."""
+    values = ", ".join(f"{0.5 + k * 1e-6:.6f}" for k in range(100_000))
+    scene, line = write_scene(tmp_path, "  count = 1", f"  count = 1, x = {values}",
+                              base="single.nml")
+    outdir = tmp_path / "out"
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    proc = run_args([str(scene), "--set", f"output.dir={outdir}"], RANKS, TIMEOUT, cwd, ENV)
+    message = assert_clean_failure(proc, outdir, cwd)
+    for piece in [f"{scene}:{line}:", "&particles", "x = 0.500000, 0.500001",
+                  "... (100000 values)", "too many values (100000)"]:
+        assert piece in message, message
+    assert len(message) < 1000, f"{len(message)} characters"
 
 
 def test_misspelt_group_message_lists_lbm_as_a_known_group(tmp_path: Path) -> None:
