@@ -94,6 +94,10 @@ class SweepError(Exception):
 # ---------------------------------------------------------------- value lists
 
 
+MAX_VALUES = 10_000  # values in one --gamma or --dh list
+MAX_RUNS = 1000  # runs a plan holds unless --max-runs allows more
+
+
 def parse_values(text: str) -> list[float]:
     """'1.5,2,2.5' or '1:3:0.5' (inclusive) or a mix ('1,2:4:1'): the values in order, each
     once. ValueError for anything else."""
@@ -109,7 +113,11 @@ def parse_values(text: str) -> list[float]:
             start, stop, step = (float(p) for p in parts)
             if step <= 0 or stop < start:
                 raise ValueError(f"range {item!r} needs start <= stop and step > 0")
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            count = (stop - start) / step + 1e-9
+            if not math.isfinite(count) or count >= MAX_VALUES:
+                raise ValueError(f"range {item!r} gives {count:.4g} values; a list takes at "
+                                 f"most {MAX_VALUES}")
+            n = int(math.floor(count)) + 1
             values += [round(start + k * step, 12) for k in range(n)]
         else:
             values.append(float(item))
@@ -225,6 +233,35 @@ def make_plan(base: Path, gammas: list[float] | None, dhs: list[float] | None,
                                    h if h is not None else h_default, out / run_id,
                                    shlex.join(args)))
     return plan
+
+
+def check_plan(plan: list[PlannedRun]) -> None:
+    """The program's own checks (`--check`) on the plan's corners: the runs of the smallest and
+    largest gamma and D_h/D_1 (a key's allowed range is an interval, so a value out of range
+    lies at a corner), with the plan's --set options. SweepError naming the run and quoting the
+    program's message when one is refused; a note, and no check, when the executable is not
+    on this machine (a plan written here for a cluster)."""
+    def corner(run: PlannedRun) -> bool:
+        gs = [r.gamma for r in plan if r.gamma is not None]
+        hs = [r.dh for r in plan if r.dh is not None]
+        return (run.gamma is None or run.gamma in (min(gs), max(gs))) and (
+            run.dh is None or run.dh in (min(hs), max(hs)))
+
+    for run in [r for r in plan if corner(r)]:
+        args = shlex.split(run.command)
+        try:
+            proc = subprocess.run([*args, "--check"], capture_output=True, text=True,
+                                  timeout=300, env=mpi.mpi_env(), stdin=subprocess.DEVNULL)
+        except (FileNotFoundError, PermissionError):
+            print(f"note: {args[0]} is not on this machine; the plan is not checked (run "
+                  "`dktlbm BASE --check` with a corner's options where it runs)",
+                  file=sys.stderr)
+            return
+        if proc.returncode != 0:
+            errors = [ln for ln in proc.stderr.splitlines() if "error:" in ln]
+            why = errors[0] if errors else (proc.stderr.strip() or f"exit {proc.returncode}")
+            raise SweepError(f"run {run.id} of the plan is refused by {args[0]} --check, so "
+                             f"nothing is planned:\n{why}")
 
 
 def write_plan(plan: list[PlannedRun], out: Path) -> Path:
@@ -1152,6 +1189,10 @@ def parser() -> argparse.ArgumentParser:
                       help="values of pair.dh = D_h/D_1, same forms; default: the base scene's")
     plan.add_argument("--set", dest="sets", action="append", default=[], type=_set_arg,
                       metavar="group.key=value", help="passed to every run (repeatable)")
+    plan.add_argument("--max-runs", type=int, default=MAX_RUNS, metavar="N",
+                      help=f"plan at most N runs (default {MAX_RUNS})")
+    plan.add_argument("--no-check", action="store_true",
+                      help="do not run `dktlbm --check` on the plan's corners")
     plan.add_argument("--exe", default=None,
                       help="the dktlbm executable (default: build/dktlbm of this source "
                       "tree, else dktlbm on PATH)")
@@ -1359,8 +1400,15 @@ def _dispatch(args: argparse.Namespace) -> int:
 
         return map_command(args)
     if args.command == "plan":
+        runs = len(args.gamma or [None]) * len(args.dh or [None])
+        if runs > args.max_runs:
+            raise SweepError(f"the plan would hold {runs} runs, more than --max-runs "
+                             f"{args.max_runs}: narrow --gamma or --dh, or pass --max-runs "
+                             f"{runs} to plan them all")
         plan = make_plan(args.base, args.gamma, args.dh, args.sets, out,
                          args.exe or default_exe())
+        if not args.no_check:
+            check_plan(plan)
         path = write_plan(plan, out)
         print(f"wrote {path}: {len(plan)} run{'s' if len(plan) != 1 else ''}")
         return 0

@@ -23,9 +23,9 @@ from dkt_run import EXE, ROOT, mpi_env
 from dktlbm import sweep
 
 SWEEP = ROOT / "postproc" / "sweep.py"
-BASE_TEXT = """! a pair scene for the plan tests (never run)
+BASE_TEXT = """! a pair scene for the plan tests (never run; dkt-sweep plan checks its corners)
 &pair
-  gamma = 2.0, dh = 4.0
+  gamma = 2.0, dh = 4.0, y_upper = 4.0
 /
 """
 
@@ -116,6 +116,31 @@ def test_plan_refuses_a_missing_scene_and_bad_lists(tmp_path: Path, base: Path) 
     proc = sweep_cli("run", "--out", out)
     assert proc.returncode == 2 and proc.stderr.startswith("error: ")
     assert "runs.csv" in proc.stderr
+
+
+def test_plan_is_bounded_and_checked_by_the_program(tmp_path: Path, base: Path) -> None:
+    """plan refuses, writing nothing: a range of more values than a list takes (1:1e9:1e-9
+    ran on), a plan of more runs than --max-runs (which lets them through when raised), and
+    values the program refuses, found by its own --check on the plan's corners (gamma 0.5,
+    lbm.tau=abc), quoting the program's message. --no-check plans without asking."""
+    out = tmp_path / "plan"
+    proc = sweep_cli("plan", base, "--gamma", "1:1e9:1e-9", "--out", out)
+    assert proc.returncode == 2 and "a list takes at most 10000" in proc.stderr, proc.stderr
+    proc = sweep_cli("plan", base, "--gamma", "1:3:0.01", "--dh", "2:6:0.1", "--out", out)
+    assert proc.returncode == 2, proc.stderr
+    assert f"{201 * 41} runs, more than --max-runs 1000" in proc.stderr
+    assert not out.exists()
+    proc = sweep_cli("plan", base, "--gamma", "1:3:0.5", "--dh", "2:6:1", "--max-runs", "25",
+                     "--no-check", "--out", out)
+    assert proc.returncode == 0 and len(read_csv(out / "runs.csv")) == 25, proc.stderr
+    for bad in (["--gamma", "0.5,1.5"], ["--gamma", "1.5", "--set", "lbm.tau=abc"]):
+        other = tmp_path / "refused"
+        proc = sweep_cli("plan", base, *bad, "--out", other, "--exe", EXE)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        lines = proc.stderr.splitlines()
+        assert "refused by" in lines[0] and "--check" in lines[0], proc.stderr
+        assert lines[1].startswith("dktlbm: error:"), proc.stderr
+        assert not other.exists()
 
 
 def test_slurm_array_runs_row_k_with_srun(tmp_path: Path, base: Path) -> None:
@@ -275,8 +300,9 @@ def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path
     assert h5.stat().st_mtime_ns != stamp
 
     bad = tmp_path / "bad"
+    # a run the program refuses: planned without the check, so that `run` meets it
     assert sweep_cli("plan", scene, *sets, "--set", "lbm.tau=0.4", "--out", bad, "--exe",
-                     EXE).returncode == 0
+                     EXE, "--no-check").returncode == 0
     proc = sweep_cli("run", "--out", bad, env=env, timeout=300)
     assert proc.returncode != 0
     assert "FAILED" in proc.stdout and "1 failed" in proc.stdout
