@@ -67,6 +67,9 @@ contains
           ' from lbm.mach = ', cfg%lbm%mach, ' (acoustic scaling; lbm.tau not used)'
       end if
       call log_line(trim(line))
+      if (allocated(sim%substep_note)) then
+        if (len(sim%substep_note) > 0) call log_line('note: '//sim%substep_note)
+      end if
       if (sim%particles_move .and. .not. sim%coll%bgk .and. sim%coll%s_q < SQ_UNDAMPED) then
         ! SQ_UNDAMPED: the Uhlmann DKT pair at tau = 0.512-0.53 (E3 s_q = 0.05-0.23) blew up at
         ! 20, 30 and 40 spacings per diameter; with s_q = 1.2 it ran through

@@ -29,6 +29,9 @@ module dkt_run_state
     type(particles_t) :: parts      !! allocated only when the scene has particles
     logical :: particles_on = .false.
     logical :: particles_move = .false. !! some particle is free or prescribed
+    !> the contact sub-steps taken instead of collision.substeps, for the start-up summary's
+    !! note ('' when the setting was kept)
+    character(len=:), allocatable :: substep_note
     type(window_t) :: win           !! used only when the scene asks for a window
     logical :: window_on = .false.
     type(pair_diag_t) :: pair       !! particles 1 and 2, when the scene has two or more

@@ -171,13 +171,15 @@ contains
                      'allowed: at most '//itoa(MAX_SUBSTEPS)//' sub-steps; make stiffness '// &
                      'and stiffness_overlap larger (a softer contact law)')
     end if
+    sim%substep_note = ''
     if (nsub > sim%parts%substeps) then
       write (line, '(a,i0,a,i0,a)') 'collision stiffness: the explicit particle update needs ', &
         nsub, ' sub-steps per fluid step to stay stable; '// &
         'using them instead of collision.substeps = ', sim%parts%substeps, &
         ' (the contact law is unchanged)'
       sim%parts%substeps = nsub
-      call log_line(trim(line))
+      ! the start-up summary prints it (report_summary), after the banner
+      sim%substep_note = trim(line)
     end if
     call particles_find_links(sim%parts, sim%dom)
     if (lattice_allocated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)

@@ -252,9 +252,15 @@ def test_check_refuses_sub_step_counts_out_of_range(tmp_path: Path, stiffness: s
 
 def test_stiff_contact_within_the_maximum_is_accepted(tmp_path: Path) -> None:
     """The maximum refuses only what is out of range: 100 times the default stiffness needs a
-    few sub-steps and passes (docs/stability.md)."""
+    few sub-steps and passes (docs/stability.md); the summary notes them after its banner."""
     proc, _ = dkt([str(small_scene(tmp_path)), "--check", "--set",
                    f"output.dir={tmp_path / 'out'}", "--set", "collision.stiffness=1e-9",
                    "--set", "collision.stiffness_overlap=1e-9"], tmp_path, 30)
     assert proc.returncode == 0, proc.stderr
+    # the sub-steps it takes are said in the start-up summary, after the banner, as a note
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("dktlbm "), lines[:3]
+    notes = [ln for ln in lines if "collision stiffness" in ln]
+    assert len(notes) == 1 and notes[0].startswith("note: collision stiffness: "), notes
+    assert "sub-steps per fluid step" in notes[0]
 
