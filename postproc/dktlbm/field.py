@@ -9,6 +9,7 @@ when ffmpeg is not found; the colour range is the same in every frame."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -209,6 +210,12 @@ def main(argv: list[str] | None = None) -> int:
                   args.vmax, args.cmap, args.fps)
             return 0
         snap = read_field(args.run, args.field, args.time)
+        if args.time is not None and not math.isclose(snap.time, args.time, rel_tol=1e-9,
+                                                      abs_tol=1e-12):
+            # the nearest snapshot is drawn: say which, so that a time past the run's end (or
+            # between snapshots) is not taken for the one asked for
+            print(f"note: {args.run}: no field snapshot at t = {args.time:g} s; drawing the "
+                  f"nearest, {snap.group} at t = {snap.time:g} s", file=sys.stderr)
         run, t_ref = open_particles(args.run)
         fig = plot(snap, circles_at(run, snap.time), title_of(args.run, snap, t_ref), ylim,
                    args.vmax, args.cmap)

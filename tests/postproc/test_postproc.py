@@ -364,7 +364,7 @@ def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None
     """field.py's data: the snapshot nearest --time (snapshots at 0, 1.5, 3 s; 1.1 s picks
     1.5 s), placed at its window offset (extent y from the offset up by ny dx), speed = |u|,
     nodes inside particles marked, and the particle circles at the /particles sample nearest
-    that time with radius D/2."""
+    that time with radius D/2; a --time without a snapshot of its own is said on stderr."""
     from dktlbm import field
 
     f = tmp_path / "w.h5"
@@ -389,6 +389,14 @@ def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None
                   "-o", out)
     assert proc.returncode == 0, proc.stderr
     assert_png(out)
+    # a time with no snapshot (between two, or past the end) draws the nearest and says so
+    assert "no field snapshot at t = 1.1 s" in proc.stderr and "t = 1.5 s" in proc.stderr
+    proc = script("field", f, "--time", "99", "-o", tmp_path / "late.png")
+    assert proc.returncode == 0, proc.stderr
+    assert "no field snapshot at t = 99 s; drawing the nearest" in proc.stderr
+    assert f"t = {syn.T_END:g} s" in proc.stderr
+    proc = script("field", f, "--time", "1.5", "-o", tmp_path / "exact.png")
+    assert proc.returncode == 0 and "note:" not in proc.stderr, proc.stderr
 
 
 # ---------------------------------------------------------------- bad input
