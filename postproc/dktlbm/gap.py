@@ -86,6 +86,9 @@ def plot(pairs: list[Pair], labels: list[str], tmax: float | None = None):
                             color="tab:orange", alpha=0.2, lw=0)
         fig.suptitle(f"{pair.run.name}: γ = {pair.gamma:g}, $D_h/D_1$ = {pair.dh:g}, "
                      f"pattern {pair.pattern}")
+    else:
+        patterns = ", ".join(sorted({p.pattern for p in pairs}))
+        fig.suptitle(f"{len(pairs)} runs: the gap of particles 1 and 2 (patterns: {patterns})")
     axes[0].set_ylabel("$D_x/D_1$")
     axes[1].set_ylabel("$D_y/D_1$")
     axes[2].set_ylabel("$D_r/D_1$")

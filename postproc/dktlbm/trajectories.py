@@ -45,8 +45,9 @@ def plot(run: Run):
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize="small")
     axes[-1].set_xlabel("$t^* = t/t_r$")
-    fig.suptitle(f"{run.name}: W = {run.width:g} cm, H = {run.h_ref:g} cm, "
-                 f"$t_r$ = {run.t_ref:.4g} s")
+    # H is the reference length of the time scale (docs/model.md §6), not the box's height
+    fig.suptitle(f"{run.name}: W = {run.width:g} cm, "
+                 f"$t_r = \\sqrt{{H/g}}$ = {run.t_ref:.4g} s with H = {run.h_ref:g} cm")
     return fig
 
 

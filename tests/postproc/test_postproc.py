@@ -358,6 +358,23 @@ def test_gap_overlays_runs_with_the_label_that_differs(tmp_path: Path) -> None:
     proc = script("gap", a, b, c, "-o", out, "--label", "gamma")
     assert proc.returncode == 0, proc.stderr
     assert_png(out)
+    # the overlay has a title too: how many runs, and their patterns
+    fig = gap.plot([pairs["a"], pairs["b"]], ["γ = 1", "γ = 2"])
+    assert fig._suptitle is not None
+    assert fig._suptitle.get_text() == "2 runs: the gap of particles 1 and 2 (patterns: repeated)"
+
+
+def test_trajectories_title_says_what_h_is(tmp_path: Path) -> None:
+    """The trajectories' title gives the width and the time scale t_r = sqrt(H/g) with its H
+    (the reference length, 18 cm by default, not the box's height)."""
+    from dktlbm import trajectories
+
+    f = tmp_path / "t.h5"
+    syn.write_run(f, syn.SHAPES["once"], (0.2, 0.1), fields=False)
+    run = read.open_run(f)
+    title = trajectories.plot(run)._suptitle.get_text()
+    assert f"W = {run.width:g} cm" in title
+    assert f"= {run.t_ref:.4g} s with H = {run.h_ref:g} cm" in title and "sqrt{H/g}" in title
 
 
 def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None:
