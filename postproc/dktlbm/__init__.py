@@ -4,3 +4,26 @@ Modules: read (the run-file reader), launch (starting dktlbm on MPI ranks), gap,
 trajectories, drag, field, pattern, sweep (each also a console command dkt-<name>).
 postproc/README.md documents them.
 """
+
+
+def _version() -> str:
+    """The installed package's version, else (run from the source tree) the one in the tree's
+    pyproject.toml, else 'unknown'."""
+    from importlib import metadata
+    from pathlib import Path
+
+    try:
+        return metadata.version("dktlbm")
+    except metadata.PackageNotFoundError:
+        pass
+    project = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    try:
+        for line in project.read_text().splitlines():
+            if line.startswith("version = "):
+                return line.split("=", 1)[1].strip().strip('"')
+    except OSError:
+        pass
+    return "unknown"
+
+
+__version__ = _version()

@@ -15,6 +15,7 @@ import numpy as np
 from .read import (
     Run,
     add_output_options,
+    add_version,
     guarded,
     open_run,
     output_path,
@@ -30,6 +31,7 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: dkt-drag runs/case1/case1.h5 --ylim 0 20",
     )
+    add_version(p)
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     add_output_options(p, "drag")
     p.add_argument("--ylim", nargs=2, type=float, metavar=("LOW", "HIGH"),

@@ -21,6 +21,7 @@ from .read import (
     RunFileError,
     Snapshot,
     add_output_options,
+    add_version,
     field_times,
     guarded,
     open_run,
@@ -48,6 +49,7 @@ def parser() -> argparse.ArgumentParser:
         epilog="example: dkt-field runs/case1/case1.h5 --field vorticity "
         "--time 1.4 --ylim 10 14",
     )
+    add_version(p)
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     add_output_options(p, "field")
     p.add_argument("--field", choices=FIELD_NAMES, default="vorticity",

@@ -12,6 +12,7 @@ import numpy as np
 from .read import (
     Pair,
     add_output_options,
+    add_version,
     guarded,
     open_run,
     output_path,
@@ -31,6 +32,7 @@ def parser() -> argparse.ArgumentParser:
         epilog="example: dkt-gap runs/case1/case1.h5 runs/case2/case2.h5 "
         "-o gaps.png --pdf",
     )
+    add_version(p)
     p.add_argument("runs", nargs="+", type=Path, metavar="RUN.h5", help="dktlbm run files")
     add_output_options(p, "gap")
     p.add_argument(

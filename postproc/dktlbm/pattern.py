@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .read import Pair, RunFileError, fmt, guarded, open_run, pair_of
+from .read import Pair, RunFileError, add_version, fmt, guarded, open_run, pair_of
 
 
 def parser() -> argparse.ArgumentParser:
@@ -30,6 +30,7 @@ def parser() -> argparse.ArgumentParser:
         epilog="examples:\n  dkt-pattern runs/case1/case1.h5\n"
         "  dkt-pattern runs/case1/case1.h5 --json --enter-cells 1",
     )
+    add_version(p)
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("--enter-cells", type=float, metavar="N",

@@ -1047,6 +1047,14 @@ def read_field(path: str | Path, name: str = "vorticity", time: float | None = N
 # ---------------------------------------------------------------- command-line helpers
 
 
+def add_version(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """--version on a dkt-* command: its name and the package's version."""
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    return parser
+
+
 def add_output_options(parser: argparse.ArgumentParser, suffix: str) -> None:
     parser.add_argument(
         "-o", "--output", type=Path, metavar="OUT.png",

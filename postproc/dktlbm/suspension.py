@@ -15,6 +15,7 @@ from .read import (
     Run,
     RunFileError,
     add_output_options,
+    add_version,
     guarded,
     open_h5,
     open_run,
@@ -32,6 +33,7 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: dkt-suspension runs/sediment504/sediment504.h5 --panels 4",
     )
+    add_version(p)
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file of 3+ disks")
     p.add_argument("--panels", type=int, default=4, metavar="N",
                    help="snapshot panels, evenly spaced in time from the first sample to the "

@@ -52,6 +52,7 @@ from pathlib import Path
 from . import launch as mpi
 from .read import (
     RunFileError,
+    add_version,
     fortran_float,
     guarded,
     open_h5,
@@ -1172,6 +1173,7 @@ def parser() -> argparse.ArgumentParser:
         "  dkt-sweep run --out sweeps/case1 --jobs 2 --ranks 2\n"
         "  dkt-sweep collect --out sweeps/case1",
     )
+    add_version(p)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def with_out(q: argparse.ArgumentParser) -> None:

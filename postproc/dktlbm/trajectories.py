@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .read import Run, add_output_options, guarded, open_run, output_path, save_figure
+from .read import Run, add_output_options, add_version, guarded, open_run, output_path, save_figure
 
 
 def parser() -> argparse.ArgumentParser:
@@ -17,6 +17,7 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example: dkt-trajectories runs/case1/case1.h5 --pdf",
     )
+    add_version(p)
     p.add_argument("run", type=Path, metavar="RUN.h5", help="a dktlbm run file")
     add_output_options(p, "trajectories")
     return p

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -456,6 +457,26 @@ def test_pair_scripts_refuse_a_single_particle_run(tmp_path: Path) -> None:
         proc = script(name, f)
         assert proc.returncode == 0, proc.stderr
         assert_png(tmp_path / f"single_{name}.png")
+
+
+@pytest.mark.parametrize("name", [*SCRIPTS, "sweep", "suspension"])
+def test_version(name: str) -> None:
+    """Every dkt-* command says its version (--version), the package's, which is the one
+    pyproject.toml gives (tests/test_readme.py ties that to CMakeLists.txt and CHANGELOG.md);
+    dktlbm.__version__ is the same."""
+    import dktlbm
+
+    project = (ROOT / "pyproject.toml").read_text()
+    version = re.search(r'^version = "([^"]+)"', project, re.M).group(1)
+    assert dktlbm.__version__ == version
+    if name == "suspension":  # no script of its own in postproc/: the module
+        proc = subprocess.run([sys.executable, "-m", "dktlbm.suspension", "--version"],
+                              capture_output=True, text=True, timeout=60,
+                              env={**os.environ, "PYTHONPATH": str(POSTPROC)})
+    else:
+        proc = script(name, "--version")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"dkt-{name} {version}"
 
 
 @pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
