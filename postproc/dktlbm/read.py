@@ -442,6 +442,9 @@ def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
         ep = g["episodes"]
         d["episodes_start"] = np.atleast_1d(np.asarray(ep["start"][()], dtype=float))
         d["episodes_end"] = np.atleast_1d(np.asarray(ep["end"][()], dtype=float))
+        if "gap_min" in ep:
+            # the smallest gap of each episode over every step, not only the sampled ones
+            d["episodes_gap_min"] = np.atleast_1d(np.asarray(ep["gap_min"][()], dtype=float))
     return d
 
 
@@ -880,10 +883,15 @@ def _pair_from_diagnostics(run: Run, diag: dict[str, Any],
             starts = diag.get("episodes_start", np.zeros(0))
             ends = diag.get("episodes_end", np.zeros(0))
             is_open = bool(_num_or(a, "open_episode", 0.0))
+            stored_gaps = diag.get("episodes_gap_min")
             episodes = []
             for k, (t0, t1) in enumerate(zip(starts, ends, strict=False)):
-                inside = (t >= t0) & (t <= t1)
-                gap = float(np.min(dr[inside])) if np.any(inside) else math.nan
+                if stored_gaps is not None and k < len(stored_gaps):
+                    # as the program found it, step by step (the samples may miss the least)
+                    gap = float(stored_gaps[k])
+                else:
+                    inside = (t >= t0) & (t <= t1)
+                    gap = float(np.min(dr[inside])) if np.any(inside) else math.nan
                 episodes.append(Episode(float(t0), float(t1), gap,
                                         is_open and k == len(starts) - 1))
             source = "as written in /diagnostics"

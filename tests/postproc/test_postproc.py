@@ -271,7 +271,9 @@ def test_pattern_uses_diagnostics_as_written_unless_thresholds_are_given(tmp_pat
     0.03/0.3 cm, under which the two-dip gap is one episode ('once'), and that is what
     pattern.py reports, not a reclassification with the defaults. Thresholds on the command
     line classify again: the defaults give 'repeated'; --release-d1 1.5 alone (release 0.3 cm,
-    enter keeping its default) gives 'once' again."""
+    enter keeping its default) gives 'once' again. An episode's smallest gap is the program's
+    (/diagnostics/episodes gap_min, over every step) where the file has it, else the least
+    sample."""
     k = syn.SHAPES["repeated"]
     start = syn.first_sample_at_or_after(syn.crossing(k, 0, 0.03))
     end = syn.first_sample_at_or_after(syn.crossing(k, 5, 0.3))
@@ -287,6 +289,16 @@ def test_pattern_uses_diagnostics_as_written_unless_thresholds_are_given(tmp_pat
     assert r["kissing"][0]["start"] == pytest.approx(start)
     assert r["kissing"][0]["end"] == pytest.approx(end)
     assert r["source"] == "as written in /diagnostics"
+    # without the program's smallest gap of the episode, the least sample
+    sampled = r["kissing"][0]["min_gap"]
+    with h5py.File(f, "r") as h5:
+        t, dr = h5["diagnostics/t"][()], h5["diagnostics/dr"][()]
+    assert sampled == pytest.approx(float(np.min(dr[(t >= start) & (t <= end)])))
+    # with it (the program's, over every step: below every sample), that one
+    with h5py.File(f, "a") as h5:
+        h5["diagnostics/episodes"]["gap_min"] = np.array([0.75 * sampled])
+    r = json.loads(script("pattern", f, "--json").stdout)
+    assert r["kissing"][0]["min_gap"] == 0.75 * sampled
 
     r = json.loads(script("pattern", f, "--json", "--enter-cells", "2",
                           "--release-cells", "4").stdout)
