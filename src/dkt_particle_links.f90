@@ -420,7 +420,8 @@ contains
         g(t, YF) = ps%ly(l)
         g(t, DI) = d
         g(t, DB) = opp(d)
-        ! the second fluid node x_f - e_i (Yu, BFL), or x_f again when there is none
+        ! the second fluid node x_f - e_i (Yu, BFL), or x_f again when there is none: its
+        ! value is then gathered but not used (both schemes read it only when lff)
         g(t, X2) = merge(ps%lx(l) - ex(d), ps%lx(l), ps%lff(l))
         g(t, Y2) = merge(ps%ly(l) - ey(d), ps%ly(l), ps%lff(l))
         ! the solid slot that x_f pulls f_ibar from
@@ -439,7 +440,6 @@ contains
         j = g(t, YF)
         d = g(t, DI)
         q = ps%lq(l)
-        if (.not. ps%lff(l)) v(t, FFF) = 0.0_wp
         associate (p => ps%p(k), fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
                    fb_ => v(t, FB))
           ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
