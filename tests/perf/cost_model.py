@@ -41,9 +41,10 @@ import sys
 import tempfile
 from pathlib import Path
 
+import benchlib
 import numpy as np
+from benchlib import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 PERFORMANCE = re.compile(
     r"performance:\s*([0-9.eE+-]+) MLUPS \((\d+) cells x (\d+) steps in\s*([0-9.eE+-]+) s"
 )
@@ -75,13 +76,12 @@ def scenes(tmp: Path) -> dict[str, tuple[Path, list[str], int]]:
 def run(exe: str, mpiexec: str, ranks: int, nml: Path, sets: list[str], steps: int,
         outdir: Path) -> dict:
     """One run's time per step (s), each part's seconds per step and the work figures."""
-    cmd = [mpiexec, "--oversubscribe", "-n", str(ranks), exe, str(nml)]
+    cmd = [*benchlib.launcher(mpiexec, ranks), exe, str(nml)]
     for s in sets + [f"run.steps={steps}", "run.progress_every=0", "run.checkpoint_every=0",
                      "output.field_interval=0", f"output.dir={outdir}",
                      "output.overwrite=.true."]:
         cmd += ["--set", s]
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, stdin=subprocess.DEVNULL)
+    proc = subprocess.run(cmd, capture_output=True, text=True, stdin=subprocess.DEVNULL)
     perf, parts, work = (r.search(proc.stdout) for r in (PERFORMANCE, PARTS, WORK))
     if proc.returncode != 0 or not (perf and parts and work):
         raise SystemExit(f"run failed: {' '.join(cmd)}\n{proc.stdout[-2000:]}\n{proc.stderr}")
@@ -121,6 +121,7 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--check-ranks", nargs="+", type=int, default=[2])
     args = parser.parse_args()
+    benchlib.allow_root_mpi()
     ranks_all = [1] + args.check_ranks
     measured: dict[tuple[str, int], list[dict]] = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -152,6 +153,7 @@ def main() -> int:
                   f"{r['part']['flow'] / r['step']:5.1%}")
     print("ratio: measured over model time per step; flow: the flow's share of the measured step "
           "(time per part)")
+    print(f"machine: {benchlib.machine_line()}")
     return 0
 
 
