@@ -187,9 +187,9 @@ def test_nan_gap_is_classified_up_to_it_with_a_warning(finished: Path, tmp_path:
 def test_a_garbage_run_attribute_is_one_error_line(finished: Path, tmp_path: Path,
                                                    attr: str) -> None:
     """An attribute of /run (and /diagnostics) that must be a number and holds text (a damaged
-    or foreign file): every
-    reader that needs it (dkt-pattern, dkt-gap, dkt-trajectories, dkt-field) exits 2 with one
-    `error:` line naming the file and the attribute, never a traceback; the file is unchanged."""
+    or foreign file): every reader that needs it (dkt-pattern, dkt-gap, dkt-trajectories,
+    dkt-field) exits 2 with one `error:` line naming the file and the attribute, never a
+    traceback; the file is unchanged."""
     h5 = tmp_path / "case1.h5"
     shutil.copy(finished / "case1.h5", h5)
     with h5py.File(h5, "a") as f:

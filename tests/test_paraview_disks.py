@@ -1,8 +1,8 @@
 """ParaView shows ten thousand disks with their radius: the 10 032-disk box of
 tools/suspension_scene.py (`--kind sediment10k`, at 8 spacings per D: 512 x 3072), every third
 disk widened from D = 0.0625 to 0.064 cm so that the radii differ, 2 ranks, one step with a
-snapshot before and after it, is read back through its XDMF sidecar by
-pvpython with ParaView's XDMF reader and drawn with a Glyph filter scaled by the `radius` array
+snapshot before and after it, is read back through its XDMF sidecar by pvpython with ParaView's
+XDMF reader and drawn with a Glyph filter scaled by the `radius` array
 (tests/paraview_disks_probe.py).
 
 Proves: the particle grid of the last snapshot has every disk once, at its /particles centre of
@@ -28,9 +28,7 @@ import pytest
 from dkt_run import ROOT, pvpython_or_skip, run
 
 PVPYTHON = pvpython_or_skip()
-
-
-N = 10032
+N = 10032  # the disks of tools/suspension_scene.py --kind sediment10k
 
 
 def diameter(k: int) -> float:

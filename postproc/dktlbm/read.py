@@ -1055,12 +1055,11 @@ def read_field(path: str | Path, name: str = "vorticity", time: float | None = N
 # ---------------------------------------------------------------- command-line helpers
 
 
-def add_version(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+def add_version(parser: argparse.ArgumentParser) -> None:
     """--version on a dkt-* command: its name and the package's version."""
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    return parser
 
 
 def add_output_options(parser: argparse.ArgumentParser, suffix: str) -> None:
@@ -1096,8 +1095,8 @@ def save_figure(fig: Any, png: Path, pdf: bool) -> list[Path]:
 def guarded(body: Callable[[], int]) -> int:
     """Run `body`; a RunFileError, a missing executable (LaunchError), a stored value that is not
     a number (NotANumber) or an unwritable output becomes `error: ...` on stderr and exit
-    status 2, without a traceback. A reader that
-    stopped reading (`dkt-pattern run.h5 | head -1`) ends the command quietly, status 0."""
+    status 2, without a traceback. A reader that stopped reading (`dkt-pattern run.h5 | head
+    -1`) ends the command quietly, status 0."""
     try:
         try:
             return body()

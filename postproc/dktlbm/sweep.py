@@ -242,13 +242,13 @@ def check_plan(plan: list[PlannedRun]) -> None:
     lies at a corner), with the plan's --set options. SweepError naming the run and quoting the
     program's message when one is refused; a note, and no check, when the executable is not
     on this machine (a plan written here for a cluster)."""
-    def corner(run: PlannedRun) -> bool:
-        gs = [r.gamma for r in plan if r.gamma is not None]
-        hs = [r.dh for r in plan if r.dh is not None]
-        return (run.gamma is None or run.gamma in (min(gs), max(gs))) and (
-            run.dh is None or run.dh in (min(hs), max(hs)))
-
-    for run in [r for r in plan if corner(r)]:
+    gs = [r.gamma for r in plan if r.gamma is not None]
+    hs = [r.dh for r in plan if r.dh is not None]
+    ends_g = (min(gs), max(gs)) if gs else ()
+    ends_h = (min(hs), max(hs)) if hs else ()
+    corners = [r for r in plan if (r.gamma is None or r.gamma in ends_g)
+               and (r.dh is None or r.dh in ends_h)]
+    for run in corners:
         args = shlex.split(run.command)
         try:
             proc = subprocess.run([*args, "--check"], capture_output=True, text=True,
