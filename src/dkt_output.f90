@@ -399,9 +399,10 @@ contains
     type(output_t), intent(in) :: out
     type(simulation_t), intent(in) :: sim
     !> the files of a run besides <name>.h5, as suffixes of the scene name
-    character(len=16), parameter :: RUN_FILES(6) = ['.h5             ', '.log            ', &
-                                                    '.xdmf           ', '_diagnostics.csv', &
-                                                    '.checkpoint     ', '.finished       ']
+    character(len=16), parameter :: RUN_FILES(7) = ['.h5             ', '.log            ', &
+                                                    '.xdmf           ', '_particles.xdmf ', &
+                                                    '_diagnostics.csv', '.checkpoint     ', &
+                                                    '.finished       ']
     character(len=4096) :: found
     character(len=:), allocatable :: dir
     logical :: ok

@@ -9,6 +9,12 @@
 !> extra data on disk); and `particles`, one Polyvertex point per disk at its centre with
 !> `velocity` (vector), `radius`, `omega` and `id`. ParaView's "XDMF Reader" (XDMFReader in
 !> pvpython) reads both; its Xdmf3 readers read the grids but not the joined vector.
+!>
+!> A run with disks also gets `<dir>/<name>_particles.xdmf`: the same particle grids, pointing
+!> to the same datasets, as a temporal collection of its own. ParaView's XDMF reader names the
+!> blocks of a repeated grid `particles`, `particles[1]`, ... by output time, so a block picked
+!> in `<name>.xdmf` is gone at the next time; this file reads as one point set at every time,
+!> and a Glyph filter on it draws the disks at whatever time is shown.
 module dkt_xdmf
   use dkt_kinds, only: wp
   use dkt_filesystem, only: rename_file
@@ -36,6 +42,7 @@ module dkt_xdmf
   !> The sidecar of one HDF5 file and the snapshots it lists.
   type :: xdmf_t
     character(len=:), allocatable :: path    !! <dir>/<name>.xdmf
+    character(len=:), allocatable :: particles_path !! <dir>/<name>_particles.xdmf
     character(len=:), allocatable :: h5_name !! the HDF5 file, in the same directory
     integer :: nx = 0 !! global columns
     integer :: ny = 0 !! global rows at the open (each frame has its own)
@@ -44,18 +51,29 @@ module dkt_xdmf
     type(frame_t), allocatable :: frames(:)
   end type xdmf_t
 
+  !> the end of a sidecar started by temporal_open
+  character(len=*), parameter :: TEMPORAL_CLOSE = '    </Grid>'//new_line('a')//'  </Domain>'// &
+                                 new_line('a')//'</Xdmf>'
+
 contains
 
-  !> Start an empty sidecar for the (nx, ny) lattice of spacing dx stored in `h5_name`. Nothing
-  !! is written to disk.
+  !> Start an empty sidecar for the (nx, ny) lattice of spacing dx stored in `h5_name`, and the
+  !! particle sidecar beside it (`path` without `.xdmf`, then `_particles.xdmf`). Nothing is
+  !! written to disk.
   subroutine xdmf_init(x, path, h5_name, nx, ny, dx)
     type(xdmf_t), intent(inout) :: x
     character(len=*), intent(in) :: path    !! <dir>/<name>.xdmf
     character(len=*), intent(in) :: h5_name !! HDF5 file name relative to the sidecar
     integer, intent(in) :: nx, ny           !! global lattice size (columns, rows)
     real(wp), intent(in) :: dx              !! cm, lattice spacing
+    integer :: stem
 
     x%path = path
+    stem = len(path)
+    if (stem > 5) then
+      if (path(stem - 4:) == '.xdmf') stem = stem - 5
+    end if
+    x%particles_path = path(:stem)//'_particles.xdmf'
     x%h5_name = h5_name
     x%nx = nx
     x%ny = ny
@@ -106,21 +124,49 @@ contains
     end associate
   end subroutine xdmf_add_frame
 
-  !> Rewrite the sidecar with every snapshot so far: a temporal collection with, at each output
-  !! time, the fields on the cell-centred nodes ((i - 1/2) dx, (j - 1/2) dx + offset, 0) and the
-  !! disks. XDMF lists dimensions, origin and spacing slowest index first, i.e. (z, y, x).
-  !! Written to a temporary name and renamed, so a reader never sees a half-written file.
+  !> Rewrite the sidecars with every snapshot so far: `<name>.xdmf` (main_xml) and, when a
+  !! snapshot holds disks, `<name>_particles.xdmf` (particles_xml); without disks a particle
+  !! sidecar left at that path is removed (a restart may have cut its snapshots). Each is
+  !! written to a temporary name and renamed, so a reader never sees a half-written file.
   subroutine xdmf_write(x)
     type(xdmf_t), intent(in) :: x
-    character(len=:), allocatable :: xml, dims, tmp, prec, h5
-    character(len=512) :: msg
+
+    call write_text(x%path, main_xml(x))
+    if (any(x%frames(1:x%nframes)%nparticles > 0)) then
+      call write_text(x%particles_path, particles_xml(x))
+    else
+      call delete_file(x%particles_path)
+    end if
+  end subroutine xdmf_write
+
+  !> Remove the sidecars if they exist (ones left by an earlier run would name groups the new
+  !! HDF5 file does not have).
+  subroutine xdmf_delete(x)
+    type(xdmf_t), intent(in) :: x
+    call delete_file(x%path)
+    call delete_file(x%particles_path)
+  end subroutine xdmf_delete
+
+  !> Forget every frame.
+  subroutine xdmf_free(x)
+    type(xdmf_t), intent(inout) :: x
+    x%nframes = 0
+    if (allocated(x%frames)) deallocate (x%frames)
+  end subroutine xdmf_free
+
+  ! ---------------------------------------------------------------------------------------------
+
+  !> The main sidecar: a temporal collection with, at each output time, the fields on the
+  !! cell-centred nodes ((i - 1/2) dx, (j - 1/2) dx + offset, 0) and the disks. XDMF lists
+  !! dimensions, origin and spacing slowest index first, i.e. (z, y, x).
+  function main_xml(x) result(xml)
+    type(xdmf_t), intent(in) :: x
+    character(len=:), allocatable :: xml, dims, prec, h5
     character(len=1), parameter :: nl = new_line('a')
-    integer :: u, ios, n, k
+    integer :: n, k
 
     prec = itoa(storage_size(1.0_wp)/8)
-    xml = '<?xml version="1.0" ?>'//nl//'<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>'//nl// &
-          '<Xdmf Version="3.0">'//nl//'  <Domain>'//nl// &
-          '    <Grid Name="run" GridType="Collection" CollectionType="Temporal">'//nl
+    xml = temporal_open('run')
     do n = 1, x%nframes
       associate (f => x%frames(n))
         dims = '1 '//itoa(f%ny)//' '//itoa(x%nx)
@@ -150,66 +196,96 @@ contains
                 '              '//item(dims, storage_size(1.0_wp)/8, h5//'/uy')// &
                 '            </DataItem>'//nl//'          </Attribute>'//nl
         xml = xml//'        </Grid>'//nl
-        if (f%nparticles > 0) xml = xml//particle_grid(f%nparticles, h5//'/particles')
+        if (f%nparticles > 0) &
+          xml = xml//particle_grid(f%nparticles, h5//'/particles', '        ', '')
         xml = xml//'      </Grid>'//nl
       end associate
     end do
-    xml = xml//'    </Grid>'//nl//'  </Domain>'//nl//'</Xdmf>'
+    xml = xml//TEMPORAL_CLOSE
+  end function main_xml
 
-    tmp = x%path//'.tmp'
+  !> The particle sidecar: a temporal collection of the particle grids alone, one per output
+  !! time that has disks, each with its Time, pointing to the datasets main_xml names.
+  function particles_xml(x) result(xml)
+    type(xdmf_t), intent(in) :: x
+    character(len=:), allocatable :: xml
+    integer :: n
+
+    xml = temporal_open('particles')
+    do n = 1, x%nframes
+      associate (f => x%frames(n))
+        if (f%nparticles > 0) &
+          xml = xml//particle_grid(f%nparticles, xml_escape(x%h5_name//':'//f%group)// &
+                                   '/particles', '      ', rtoa(f%t))
+      end associate
+    end do
+    xml = xml//TEMPORAL_CLOSE
+  end function particles_xml
+
+  !> The start of a sidecar: the XML header and a temporal collection named `name`, left open
+  !! for its grids (TEMPORAL_CLOSE ends it).
+  function temporal_open(name) result(xml)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: xml
+    character(len=1), parameter :: nl = new_line('a')
+    xml = '<?xml version="1.0" ?>'//nl//'<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>'//nl// &
+          '<Xdmf Version="3.0">'//nl//'  <Domain>'//nl//'    <Grid Name="'//name// &
+          '" GridType="Collection" CollectionType="Temporal">'//nl
+  end function temporal_open
+
+  !> Write `text` to `path` through a temporary file renamed over it.
+  subroutine write_text(path, text)
+    character(len=*), intent(in) :: path, text
+    character(len=:), allocatable :: tmp
+    character(len=512) :: msg
+    integer :: u, ios
+
+    tmp = path//'.tmp'
     open (newunit=u, file=tmp, status='replace', action='write', form='formatted', &
           iostat=ios, iomsg=msg)
-    if (ios == 0) write (u, '(a)', iostat=ios, iomsg=msg) xml
+    if (ios == 0) write (u, '(a)', iostat=ios, iomsg=msg) text
     if (ios == 0) close (u, iostat=ios, iomsg=msg)
     if (ios /= 0) call fatal_local('cannot write '''//tmp//''': '//trim(msg))
-    if (.not. rename_file(tmp, x%path)) &
-      call fatal_local('cannot rename '''//tmp//''' to '''//x%path//'''')
-  end subroutine xdmf_write
+    if (.not. rename_file(tmp, path)) &
+      call fatal_local('cannot rename '''//tmp//''' to '''//path//'''')
+  end subroutine write_text
 
-  !> Remove the sidecar file if it exists (one left by an earlier run would name groups the new
-  !! HDF5 file does not have).
-  subroutine xdmf_delete(x)
-    type(xdmf_t), intent(in) :: x
+  !> Remove the file at `path` if it exists.
+  subroutine delete_file(path)
+    character(len=*), intent(in) :: path
     integer :: u, ios
     logical :: exists
 
-    inquire (file=x%path, exist=exists)
+    inquire (file=path, exist=exists)
     if (.not. exists) return
-    open (newunit=u, file=x%path, status='old', iostat=ios)
+    open (newunit=u, file=path, status='old', iostat=ios)
     if (ios == 0) close (u, status='delete', iostat=ios)
-    if (ios /= 0) call fatal_local('cannot remove the stale file '''//x%path//'''')
-  end subroutine xdmf_delete
-
-  !> Forget every frame.
-  subroutine xdmf_free(x)
-    type(xdmf_t), intent(inout) :: x
-    x%nframes = 0
-    if (allocated(x%frames)) deallocate (x%frames)
-  end subroutine xdmf_free
-
-  ! ---------------------------------------------------------------------------------------------
+    if (ios /= 0) call fatal_local('cannot remove the stale file '''//path//'''')
+  end subroutine delete_file
 
   !> The grid of `n` disks stored in HDF5 group `h5` (escaped "file:/group"): points at their
-  !! centres with their velocity, radius, angular velocity and number.
-  function particle_grid(n, h5) result(xml)
+  !! centres with their velocity, radius, angular velocity and number; indented by `ind`, and
+  !! with a Time element of value `time` (s) unless that is empty.
+  function particle_grid(n, h5, ind, time) result(xml)
     integer, intent(in) :: n
-    character(len=*), intent(in) :: h5
-    character(len=:), allocatable :: xml
+    character(len=*), intent(in) :: h5, ind, time
+    character(len=:), allocatable :: xml, in
     character(len=1), parameter :: nl = new_line('a')
-    character(len=*), parameter :: ind = '          '
     integer :: b
     b = storage_size(1.0_wp)/8
-    xml = '        <Grid Name="particles" GridType="Uniform">'//nl// &
-          ind//'<Topology TopologyType="Polyvertex" NumberOfElements="'//itoa(n)// &
+    in = ind//'  '
+    xml = ind//'<Grid Name="particles" GridType="Uniform">'//nl
+    if (len(time) > 0) xml = xml//in//'<Time Value="'//time//'"/>'//nl
+    xml = xml//in//'<Topology TopologyType="Polyvertex" NumberOfElements="'//itoa(n)// &
           '" NodesPerElement="1"/>'//nl// &
-          ind//'<Geometry GeometryType="XYZ">'//nl// &
-          ind//'  '//item(itoa(n)//' 3', b, h5//'/position')// &
-          ind//'</Geometry>'//nl// &
-          attribute('velocity', 'Vector', itoa(n)//' 3', b, h5//'/velocity', ind)// &
-          attribute('radius', 'Scalar', itoa(n), b, h5//'/radius', ind)// &
-          attribute('omega', 'Scalar', itoa(n), b, h5//'/omega', ind)// &
-          attribute('id', 'Scalar', itoa(n), -4, h5//'/id', ind)// &
-          '        </Grid>'//nl
+          in//'<Geometry GeometryType="XYZ">'//nl// &
+          in//'  '//item(itoa(n)//' 3', b, h5//'/position')// &
+          in//'</Geometry>'//nl// &
+          attribute('velocity', 'Vector', itoa(n)//' 3', b, h5//'/velocity', in)// &
+          attribute('radius', 'Scalar', itoa(n), b, h5//'/radius', in)// &
+          attribute('omega', 'Scalar', itoa(n), b, h5//'/omega', in)// &
+          attribute('id', 'Scalar', itoa(n), -4, h5//'/id', in)// &
+          ind//'</Grid>'//nl
   end function particle_grid
 
   !> A node-centred Attribute element holding one HDF5 dataset.

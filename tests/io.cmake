@@ -18,3 +18,8 @@ dkt_add_pytest(NAME paraview FILE tests/test_paraview.py LABELS paraview mpi PRO
 # scaled by it.
 dkt_add_pytest(NAME paraview_disks FILE tests/test_paraview_disks.py LABELS paraview mpi
   PROCESSORS 2 TIMEOUT 900)
+
+# The disks as a user draws them in ParaView: the particle sidecar, one Glyph made once, the
+# time stepped through, after a restart; the sidecar's place among the files of a run.
+dkt_add_pytest(NAME paraview_particles FILE tests/test_paraview_particles.py LABELS paraview mpi
+  PROCESSORS 2 TIMEOUT 600)
