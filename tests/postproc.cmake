@@ -18,8 +18,12 @@ dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS po
 # with two known straight borders (in-process, and once through the command line).
 dkt_add_pytest(NAME postproc_map FILE tests/postproc/test_map.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
+# dkt-paraview: one error line without pvpython or a display; with ParaView, the PNG of a small
+# real run with the disks of its particle sidecar.
+dkt_add_pytest(NAME postproc_paraview FILE tests/postproc/test_paraview_command.py
+  LABELS postproc paraview)
 # The install as a new user meets it: `cmake --install` into a scratch prefix, the package
 # pip-installed into a scratch venv, and from an empty directory with only their bin
-# directories on PATH an example scene on 2 ranks, dkt-gap and dkt-pattern.
+# directories on PATH an example scene on 2 ranks, dkt-gap, dkt-pattern and dkt-paraview.
 dkt_add_pytest(NAME install FILE tests/test_install.py LABELS postproc PROCESSORS 2 TIMEOUT 600
   ENV "DKT_BUILD_DIR=${CMAKE_BINARY_DIR}" "DKT_CMAKE=${CMAKE_COMMAND}")

@@ -9,7 +9,8 @@ Then, from an empty directory with only the prefix's bin and the venv's bin on P
 MPI launcher's directory after them; no
 DKTLBM_EXE, DKTLBM_ROOT or PYTHONPATH): an example scene runs on 2 ranks, `dkt-gap` draws its
 PNG, `dkt-pattern` classifies it, and the package the commands import is the venv's, not the
-tree's.
+tree's. `dkt-paraview` answers --help and --version from the install, its render script is the
+venv's copy, and where pvpython is there it draws a PNG of a short run.
 """
 
 from __future__ import annotations
@@ -125,3 +126,37 @@ def test_a_new_user_runs_an_example_and_plots_it(installed: dict[str, Path],
 
     where = run(["python", "-c", "import dktlbm; print(dktlbm.__file__)"], env=env, cwd=here)
     assert Path(where.stdout.strip()).is_relative_to(installed["venv"])
+
+
+def test_dkt_paraview_from_the_install(installed: dict[str, Path], tmp_path: Path) -> None:
+    """dkt-paraview --help and --version from the venv; the script it gives pvpython is in the
+    venv (an install that left it out, or that pointed into the tree, fails here); with pvpython
+    on PATH, a PNG of case1 (8 cells per D, 0.1 s, 1 rank) at the size asked for."""
+    env = user_env(installed)
+    # ParaView and xvfb-run where the user has them: their directories after the install's
+    for tool in ("pvpython", "xvfb-run"):
+        found = shutil.which(tool)
+        if found:
+            env["PATH"] += os.pathsep + str(Path(found).parent)
+    here = tmp_path / "empty"
+    here.mkdir()
+    assert run(["dkt-paraview", "--help"], env=env, cwd=here).stdout.startswith(
+        "usage: dkt-paraview")
+    assert run(["dkt-paraview", "--version"], env=env, cwd=here).stdout.startswith(
+        "dkt-paraview ")
+    where = run(["python", "-c", "import dktlbm.paraview as m; print(m.RENDER)"], env=env,
+                cwd=here)
+    render = Path(where.stdout.strip())
+    assert render.is_file() and render.is_relative_to(installed["venv"]), render
+    if shutil.which("pvpython", path=env["PATH"]) is None:
+        return
+    scene = installed["prefix"] / "share" / "dktlbm" / "examples" / "case1.nml"
+    prefix = launch.mpi_prefix(1, str(mpi_launcher()))
+    run([*prefix, "dktlbm", scene, "--set", "lbm.cells_per_diameter=8", "--set",
+         "run.t_end=0.1", "--set", "output.dir=run"], env={**env, **launch.root_env()}, cwd=here)
+    run(["dkt-paraview", "run/case1.h5", "--size", "190", "350"], env=env, cwd=here)
+    from PIL import Image
+
+    with Image.open(here / "run" / "case1_paraview.png") as image:
+        assert image.format == "PNG" and image.size == (190, 350)
+        assert len(image.convert("RGB").getcolors(maxcolors=1 << 20)) > 2

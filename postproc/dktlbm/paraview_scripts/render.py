@@ -1,14 +1,13 @@
-"""Render the vorticity of a dktlbm run with its disks as glyphs, from the run's XDMF sidecar,
-to a PNG: the ParaView view a user builds by hand (docs/output.md, "Open it in ParaView").
+"""Render the vorticity of a dktlbm run with its disks as glyphs to a PNG, from the run's XDMF
+sidecars: the ParaView view a user builds by hand (docs/output.md, "Open it in ParaView").
+The command dkt-paraview (dktlbm.paraview) runs it with ParaView's Python:
 
-Run with ParaView's Python (no display is needed under xvfb):
+    pvpython render.py runs/case1/case1.xdmf --time 1.5 -o case1_paraview.png
 
-    xvfb-run -a pvpython tools/render_paraview.py runs/case1/case1.xdmf --time 1.5 \\
-        -o docs/img/case1_paraview.png
-
-The field grid is coloured by vorticity (1/s, a symmetric range, blue clockwise, red
-anticlockwise); each disk is a sphere glyph of its radius at its centre; the title gives the
-scene and the time of the output shown (the output nearest to --time).
+The field grids of <name>.xdmf are coloured by vorticity (1/s, a symmetric range, blue
+clockwise, red anticlockwise); each disk of <name>_particles.xdmf is a sphere glyph of its
+radius at its centre; the title gives the scene and the time of the output shown (the output
+nearest to --time).
 """
 
 from __future__ import annotations
@@ -31,25 +30,26 @@ from paraview.simple import (
 
 
 def main() -> None:
+    # every option is given by dkt-paraview, which holds the defaults
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("xdmf", type=Path, help="the run's <name>.xdmf")
     ap.add_argument("--time", type=float, default=None, help="s; default: the last output")
-    ap.add_argument("--field", default="vorticity", help="point field to colour by")
-    ap.add_argument("--range", type=float, default=20.0,
-                    help="colour range +-RANGE in the field's unit (default 20)")
-    ap.add_argument("--size", type=int, nargs=2, default=(760, 1400), metavar=("W", "H"),
+    ap.add_argument("--field", required=True, help="point field to colour by")
+    ap.add_argument("--range", type=float, required=True,
+                    help="colour range +-RANGE in the field's unit")
+    ap.add_argument("--size", type=int, nargs=2, required=True, metavar=("W", "H"),
                     help="image size in pixels")
     ap.add_argument("-o", "--output", type=Path, required=True, help="the PNG to write")
     args = ap.parse_args()
     path = str(args.xdmf.resolve())
 
-    # one reader per grid kind: the reader names the grids of each output time fields,
-    # fields[1], ... and particles, particles[1], ...
+    # the fields from <name>.xdmf (the reader names the grids of each output time fields,
+    # fields[1], ...), the disks from <name>_particles.xdmf, written for runs with disks
     fields = XDMFReader(FileNames=[path])
     grids = list(fields.GetProperty("GridInfo")[::2])
     fields.GridStatus = [g for g in grids if g.startswith("fields")]
-    disks = XDMFReader(FileNames=[path])
-    disks.GridStatus = [g for g in grids if g.startswith("particles")]
+    particles = args.xdmf.with_name(args.xdmf.stem + "_particles.xdmf")
+    disks = XDMFReader(FileNames=[str(particles.resolve())]) if particles.is_file() else None
     times = list(fields.TimestepValues) or [0.0]
     t = times[-1] if args.time is None else min(times, key=lambda v: abs(v - args.time))
 
@@ -80,16 +80,17 @@ def main() -> None:
     bar.RangeLabelFormat = "%-#.3g"
     bar.ScalarBarLength = 0.4
 
-    glyphs = Glyph(Input=disks, GlyphType="Sphere")
-    glyphs.GlyphType.ThetaResolution = 64
-    glyphs.GlyphType.PhiResolution = 32
-    glyphs.ScaleArray = ["POINTS", "radius"]
-    glyphs.ScaleFactor = 2.0  # the sphere source has radius 1/2: a sphere of radius `radius`
-    glyphs.GlyphMode = "All Points"
-    glyphs.OrientationArray = ["POINTS", "No orientation array"]
-    gshown = Show(glyphs, view)
-    ColorBy(gshown, None)
-    gshown.DiffuseColor = gshown.AmbientColor = [0.15, 0.15, 0.15]
+    if disks is not None:
+        glyphs = Glyph(Input=disks, GlyphType="Sphere")
+        glyphs.GlyphType.ThetaResolution = 64
+        glyphs.GlyphType.PhiResolution = 32
+        glyphs.ScaleArray = ["POINTS", "radius"]
+        glyphs.ScaleFactor = 2.0  # the sphere source has radius 1/2: a sphere of radius `radius`
+        glyphs.GlyphMode = "All Points"
+        glyphs.OrientationArray = ["POINTS", "No orientation array"]
+        gshown = Show(glyphs, view)
+        ColorBy(gshown, None)
+        gshown.DiffuseColor = gshown.AmbientColor = [0.15, 0.15, 0.15]
 
     title = Text(Text=f"{args.xdmf.stem}: {args.field}, t = {t:.3f} s")
     tshown = Show(title, view)
@@ -115,4 +116,5 @@ def main() -> None:
     print(f"wrote {args.output} (t = {t} s)")
 
 
-main()
+if __name__ == "__main__":
+    main()
