@@ -1,12 +1,12 @@
-"""Open a many-disk run's XDMF sidecar with ParaView's XDMF reader, draw every disk as a glyph
-scaled by its radius, and print what ParaView made, as JSON on the last line of stdout, for
-tests/test_paraview_disks.py.
+"""Open a many-disk run's particle sidecar `<name>_particles.xdmf` with ParaView's XDMF reader,
+draw every disk as a glyph scaled by its radius, and print what ParaView made, as JSON on the
+last line of stdout, for tests/test_paraview_disks.py.
 
-Run with pvpython: `pvpython tests/paraview_disks_probe.py RUN.xdmf`. For the last time step: the
-particle grid's point count, its coordinates and `radius`; and for the Glyph filter (a sphere of
-diameter 1 per disk, scaled by `radius` times 2, so its radius is the disk's) the point count,
-and each disk's glyph: its radius (half its height along z, where the sphere's poles reach it)
-and the middle of its extent in x and y.
+Run with pvpython: `pvpython tests/paraview_disks_probe.py RUN_particles.xdmf`. For the last time
+step: the particle grid's point count, its coordinates and `radius`; and for the Glyph filter (a
+sphere of diameter 1 per disk, scaled by `radius` times 2, so its radius is the disk's) the point
+count, and each disk's glyph: its radius (half its height along z, where the sphere's poles
+reach it) and the middle of its extent in x and y.
 """
 
 import json
@@ -20,17 +20,10 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 def main() -> None:
     reader = XDMFReader(FileNames=[sys.argv[1]])
     reader.UpdatePipelineInformation()
-    # the particle grids only (the reader names a grid of the k-th repeat "particles[k]"): the
-    # fields are not read, and the Glyph filter draws the disks alone
-    grids = reader.GetProperty("GridInfo")[::2]
-    reader.GridStatus = [g for g in grids if g.split("[")[0] == "particles"]
+    # the disks alone: the lattice is not read, and the Glyph filter draws the disks only
     t = list(reader.TimestepValues)[-1]
     reader.UpdatePipeline(t)
-    root = servermanager.Fetch(reader)
-    parts = None
-    for k in range(root.GetNumberOfBlocks()):
-        if root.GetMetaData(k).Get(root.NAME()).split("[")[0] == "particles":
-            parts = root.GetBlock(k)
+    parts = servermanager.Fetch(reader)
     radius = parts.GetPointData().GetArray("radius")
     out = {
         "time": t,
@@ -43,11 +36,7 @@ def main() -> None:
     glyph.GlyphMode = "All Points"
     glyph.UpdatePipeline(t)
     drawn = servermanager.Fetch(glyph)
-    # one block per particle grid read; the last time step's is the one drawn
-    blocks = [drawn.GetBlock(k) for k in range(drawn.GetNumberOfBlocks())] \
-        if drawn.IsA("vtkMultiBlockDataSet") else [drawn]
-    block = [b for b in blocks if b is not None and b.GetNumberOfPoints() > 0][-1]
-    points = vtk_to_numpy(block.GetPoints().GetData()).astype(float)
+    points = vtk_to_numpy(drawn.GetPoints().GetData()).astype(float)
     # the glyphs' points come disk after disk, the same number for each: a sphere reaches its
     # radius at its poles, along z, whatever its tessellation
     per = points.reshape(parts.GetNumberOfPoints(), -1, 3)

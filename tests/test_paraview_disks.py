@@ -1,8 +1,8 @@
 """ParaView shows ten thousand disks with their radius: the 10 032-disk box of
 tools/suspension_scene.py (`--kind sediment10k`, at 8 spacings per D: 512 x 3072), every third
 disk widened from D = 0.0625 to 0.064 cm so that the radii differ, 2 ranks, one step with a
-snapshot before and after it, is read back through its XDMF sidecar by pvpython with ParaView's
-XDMF reader and drawn with a Glyph filter scaled by the `radius` array
+snapshot before and after it, is read back through its particle sidecar by pvpython with
+ParaView's XDMF reader and drawn with a Glyph filter scaled by the `radius` array
 (tests/paraview_disks_probe.py).
 
 Proves: the particle grid of the last snapshot has every disk once, at its /particles centre of
@@ -55,7 +55,7 @@ def probe(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     run(scene, 2, ["lbm.cells_per_diameter=8", "run.steps=1", "output.field_interval=1e-9"],
         out, timeout=600.0)
     proc = subprocess.run([PVPYTHON, str(ROOT / "tests" / "paraview_disks_probe.py"),
-                           str(out / "sediment10k.xdmf")],
+                           str(out / "sediment10k_particles.xdmf")],
                           capture_output=True, text=True, timeout=600, cwd=out)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return out, json.loads(proc.stdout.strip().splitlines()[-1])

@@ -1,7 +1,8 @@
 """dktlbm post-processing: read dktlbm run files, plot and classify them, run sweeps.
 
 Modules: read (the run-file reader), launch (starting dktlbm on MPI ranks), gap,
-trajectories, drag, field, pattern, sweep (each also a console command dkt-<name>).
+trajectories, drag, field, pattern, sweep, paraview (each also a console command
+dkt-<name>; paraview runs paraview_scripts/render.py under ParaView's pvpython).
 postproc/README.md documents them.
 """
 
