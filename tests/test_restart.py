@@ -4,7 +4,7 @@ The scene is case0 (two disks in the moving window, 10 spacings per diameter) so
 checkpoint must carry the populations, both particles, the window offset and the kissing
 episodes. "Indistinguishable" is checked on the whole output: every dataset of the HDF5 file
 (fields, /particles, /diagnostics, episodes) compared with np.array_equal, the /diagnostics
-attributes, the CSV file and the XDMF sidecar byte for byte.
+attributes, the CSV file and the XDMF sidecars byte for byte.
 """
 
 from __future__ import annotations
@@ -51,13 +51,14 @@ LONG_SETS = [*SETS, f"run.steps={LONG}", "output.field_interval=0.5"]
 
 
 def assert_same_output(a: Path, b: Path) -> None:
-    """Every dataset, the /diagnostics attributes, the CSV and the XDMF of two output dirs."""
+    """Every dataset, the /diagnostics attributes, the CSV and the XDMF sidecars of two output
+    dirs."""
     da, db = datasets(a / "case0.h5"), datasets(b / "case0.h5")
     assert sorted(da) == sorted(db), set(da) ^ set(db)
     differ = [k for k in da if not np.array_equal(da[k], db[k], equal_nan=True)]
     assert not differ, f"datasets differ: {differ}"
     assert diagnostics_attrs(a / "case0.h5") == diagnostics_attrs(b / "case0.h5")
-    for name in ("case0_diagnostics.csv", "case0.xdmf"):
+    for name in ("case0_diagnostics.csv", "case0.xdmf", "case0_particles.xdmf"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     assert b"\0" not in (b / "case0.xdmf").read_bytes()
 
