@@ -5,15 +5,18 @@ Proves: without pvpython on PATH, or without a display and without xvfb-run, the
 with one `error:` line naming what is missing and status 2 (a stand-in pvpython that would
 succeed shows the check is made before it is started); a missing run file is one error line
 too. With ParaView: from a real run (input/case1.nml, 8 spacings per D, to 0.2 s) it writes the
-PNG of the size asked for beside the run file, and the disks in it come from
-`<name>_particles.xdmf` (the picture changes when that file is moved away). Fails on a command
-that runs the script from the source tree only, that draws no disks, or that hangs without a
-display.
+PNG of the size asked for beside the run file; the disks in it come from
+`<name>_particles.xdmf` (the same picture when `<name>.xdmf` loses its particle grids), and a
+run written before that file existed still shows them from `<name>.xdmf` (the same picture
+without the particle file); without either the picture changes. Fails on a command that runs
+the script from the source tree only, that draws no disks or draws them from one file only, or
+that hangs without a display.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -93,8 +96,22 @@ def test_renders_the_disks_of_the_particle_sidecar(tmp_path: Path) -> None:
         assert image.format == "PNG" and image.size == (190, 350)
         with_disks = image.convert("RGB").tobytes()
     assert len(set(with_disks)) > 2
+    main = out / "case1.xdmf"
+    whole = main.read_text()
+    # the particle grids of every output time, taken out of the main sidecar
+    fields_only = re.sub(r'[ ]*<Grid Name="particles".*?</Grid>\n', "", whole, flags=re.S)
+    assert fields_only != whole and 'Name="particles"' not in fields_only
+
+    def picture(name: str) -> bytes:
+        proc = dkt_paraview(main, "--time", "0.1", *size, "-o", tmp_path / name)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        with Image.open(tmp_path / name) as image:
+            return image.convert("RGB").tobytes()
+
+    main.write_text(fields_only)
+    assert picture("from_particle_file.png") == with_disks
+    main.write_text(whole)
     (out / "case1_particles.xdmf").rename(tmp_path / "away.xdmf")
-    proc = dkt_paraview(out / "case1.xdmf", "--time", "0.1", *size, "-o", tmp_path / "no.png")
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    with Image.open(tmp_path / "no.png") as image:
-        assert image.convert("RGB").tobytes() != with_disks
+    assert picture("old_run.png") == with_disks
+    main.write_text(fields_only)
+    assert picture("no_disks.png") != with_disks

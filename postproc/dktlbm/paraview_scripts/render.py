@@ -44,12 +44,19 @@ def main() -> None:
     path = str(args.xdmf.resolve())
 
     # the fields from <name>.xdmf (the reader names the grids of each output time fields,
-    # fields[1], ...), the disks from <name>_particles.xdmf, written for runs with disks
+    # fields[1], ...), the disks from <name>_particles.xdmf, written for runs with disks; a
+    # run written before that file existed has its disks only in <name>.xdmf (particles,
+    # particles[1], ...), which a script, unlike the GUI, can select at every time
     fields = XDMFReader(FileNames=[path])
     grids = list(fields.GetProperty("GridInfo")[::2])
     fields.GridStatus = [g for g in grids if g.startswith("fields")]
     particles = args.xdmf.with_name(args.xdmf.stem + "_particles.xdmf")
-    disks = XDMFReader(FileNames=[str(particles.resolve())]) if particles.is_file() else None
+    disks = None
+    if particles.is_file():
+        disks = XDMFReader(FileNames=[str(particles.resolve())])
+    elif any(g.startswith("particles") for g in grids):
+        disks = XDMFReader(FileNames=[path])
+        disks.GridStatus = [g for g in grids if g.startswith("particles")]
     times = list(fields.TimestepValues) or [0.0]
     t = times[-1] if args.time is None else min(times, key=lambda v: abs(v - args.time))
 
@@ -62,6 +69,8 @@ def main() -> None:
         view.UseColorPaletteForBackground = 0
 
     shown = Show(fields, view)
+    # ParaView shows a lone image grid (a run without disks) as its outline
+    shown.SetRepresentationType("Surface")
     ColorBy(shown, ("POINTS", args.field))
     lut = GetColorTransferFunction(args.field)
     lut.ApplyPreset("Cool to Warm", True)
