@@ -39,6 +39,7 @@ from pathlib import Path
 import pytest
 
 from dkt_run import EXE, ROOT, mpi_command, mpi_env
+from markdown_links import broken_links
 
 README = ROOT / "README.md"
 MAX_LINES = 300
@@ -166,38 +167,9 @@ def test_readme_is_at_most_300_lines() -> None:
     assert lines <= MAX_LINES, f"README.md has {lines} lines, more than {MAX_LINES}"
 
 
-def heading_anchors(markdown: str) -> set[str]:
-    """GitHub's anchors of the headings of a Markdown text (code blocks skipped)."""
-    anchors: set[str] = set()
-    seen: dict[str, int] = {}
-    outside = re.sub(r"^[ \t]*```.*?^[ \t]*```", "", markdown, flags=re.S | re.M)
-    for title in re.findall(r"^#{1,6}\s+(.+?)\s*#*\s*$", outside, flags=re.M):
-        slug = re.sub(r"[^\w\- ]", "", title.strip().lower()).replace(" ", "-")
-        count = seen.get(slug, 0)
-        seen[slug] = count + 1
-        anchors.add(slug if count == 0 else f"{slug}-{count}")
-    return anchors
-
-
-def relative_links(markdown: str) -> list[str]:
-    outside = re.sub(r"^[ \t]*```.*?^[ \t]*```", "", markdown, flags=re.S | re.M)
-    targets = re.findall(r"\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)", outside)
-    targets += re.findall(r"<img[^>]*\ssrc=\"([^\"]+)\"", outside)
-    return [t for t in targets if not re.match(r"[a-z]+:", t)]
-
-
 @pytest.mark.parametrize("page", LINKED_PAGES)
 def test_every_relative_link_resolves(page: str) -> None:
-    source = ROOT / page
-    problems = []
-    for target in relative_links(source.read_text(encoding="utf-8")):
-        path, _, anchor = target.partition("#")
-        file = (source.parent / path).resolve() if path else source
-        if not file.exists():
-            problems.append(f"{target}: no file {file}")
-        elif anchor and file.suffix == ".md":
-            if anchor not in heading_anchors(file.read_text(encoding="utf-8")):
-                problems.append(f"{target}: no heading with anchor #{anchor} in {file.name}")
+    problems = broken_links(ROOT / page)
     assert not problems, f"{page}: broken links:\n" + "\n".join(problems)
 
 
