@@ -8,6 +8,9 @@ dkt_add_pytest(NAME postproc FILE tests/postproc/test_postproc.py LABELS postpro
 # The reader on the old and the new form of the run file, and the values it takes for files
 # without stored scales against what the executable reports (--print-defaults, --check).
 dkt_add_pytest(NAME postproc_read FILE tests/postproc/test_read.py LABELS postproc)
+# Run.to_dataframe() and Run.to_xarray(): the series with their units (pandas and xarray
+# parts skipped where they are not installed: pip install 'dktlbm[frames]').
+dkt_add_pytest(NAME postproc_frames FILE tests/postproc/test_frames.py LABELS postproc)
 # dkt-field --movie: a frame per stored snapshot, MP4 (ffprobe) or GIF without ffmpeg.
 dkt_add_pytest(NAME postproc_movie FILE tests/postproc/test_movie.py LABELS postproc)
 dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS postproc

@@ -236,6 +236,21 @@ class Run:
     def label(self) -> str:
         return self.name
 
+    def to_dataframe(self) -> Any:
+        """The particle series as a pandas DataFrame indexed by (particle, t), units in
+        `df.attrs["units"]` (dktlbm.frames). ImportError naming the package without pandas."""
+        from .frames import to_dataframe
+
+        return to_dataframe(self)
+
+    def to_xarray(self) -> Any:
+        """The particle series and diameters as an xarray Dataset over (particle, t), each
+        variable's unit in its attrs (dktlbm.frames). ImportError naming the package without
+        xarray."""
+        from .frames import to_xarray
+
+        return to_xarray(self)
+
 
 def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
     if "diagnostics" not in h5:
