@@ -1,7 +1,7 @@
 # Post-processing (postproc/, Python): the run-file reader and DKT classifier, pattern.py, the
 # plotting scripts' command lines and bad-input handling (synthetic run files and two small
 # real runs, the larger on 2 ranks), and the sweep tool (plan, Slurm array, collect, one real
-# run through `sweep.py run`), and the threshold search `sweep.py bisect` (a stand-in program,
+# run through `dkt-sweep run`), and the threshold search `dkt-sweep bisect` (a stand-in program,
 # here and through Slurm stand-ins, plus one real bisection of ten coarse runs, under a minute).
 dkt_add_pytest(NAME postproc FILE tests/postproc/test_postproc.py LABELS postproc PROCESSORS 2
   TIMEOUT 600)
@@ -17,7 +17,7 @@ dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS post
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
-# `sweep.py map`: the borders between patterns across gamma and dh, against a stand-in program
+# `dkt-sweep map`: the borders between patterns across gamma and dh, against a stand-in program
 # with two known straight borders (in-process, and once through the command line).
 dkt_add_pytest(NAME postproc_map FILE tests/postproc/test_map.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)

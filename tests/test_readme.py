@@ -19,8 +19,9 @@ What it proves, each check able to fail:
   README's citation line's and pyproject.toml's.
 
 A dkt-X command runs as `python3 -m dktlbm.X` when the package `dktlbm` of this tree is on
-PYTHONPATH (ctest puts <root>/postproc there), else as the console script on PATH, else as the
-script postproc/X.py that the README says still works.
+PYTHONPATH (ctest puts <root>/postproc there), else as the console script on PATH, else as
+`python3 -m dktlbm.X` with PYTHONPATH=<root>/postproc, the form the README gives for a
+checkout without pip install.
 """
 
 from __future__ import annotations
@@ -287,7 +288,7 @@ def tool_runner(name: str) -> list[str]:
     console = shutil.which(name)
     if console:
         return [console]
-    return [sys.executable, str(ROOT / "postproc" / (name.removeprefix("dkt-") + ".py"))]
+    return ["env", f"PYTHONPATH={ROOT / 'postproc'}", sys.executable, "-m", module]
 
 
 def check_tool(runner: list[str], name: str, args: list[str], cwd: Path, what: str) -> None:
@@ -320,9 +321,10 @@ def test_readme_command_works(
         check_pip_install(args, what)
     elif program.startswith("dkt-"):
         check_tool(tool_runner(program), program, args, results_dir, what)
-    elif program == "python3" and args and re.fullmatch(r"postproc/\w+\.py", args[0]):
-        name = "dkt-" + Path(args[0]).stem
-        check_tool([sys.executable, str(ROOT / args[0])], name, args[1:], results_dir, what)
+    elif (program == "PYTHONPATH=postproc" and args[:2] == ["python3", "-m"]
+          and re.fullmatch(r"dktlbm\.\w+", args[2])):
+        runner = ["env", f"PYTHONPATH={ROOT / 'postproc'}", sys.executable, "-m", args[2]]
+        check_tool(runner, "dkt-" + args[2].removeprefix("dktlbm."), args[3:], results_dir, what)
     else:
         pytest.fail(f"README command `{what}` is of a kind tests/test_readme.py does not check")
 

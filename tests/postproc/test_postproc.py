@@ -1,7 +1,8 @@
-"""The post-processing scripts (postproc/): the run-file reader, the DKT classifier, pattern.py,
-the plotting scripts' command lines and their handling of bad input, on synthetic run files
-whose gap curves cross the thresholds at known times (tests/postproc/synthetic.py) and on two
-small real runs. Each test's docstring says what it proves."""
+"""The post-processing package (postproc/dktlbm): the run-file reader, the DKT classifier,
+dkt-pattern, the plotting commands' command lines and their handling of bad input, on
+synthetic run files whose gap curves cross the thresholds at known times
+(tests/postproc/synthetic.py) and on two small real runs; and the old script paths beside the
+package. Each test's docstring says what it proves."""
 
 from __future__ import annotations
 
@@ -27,9 +28,9 @@ SCRIPTS = [*PLOTS, "pattern"]
 
 
 def script(name: str, *args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run postproc/<name>.py as a user does: a separate python3 process."""
+    """Run the command dkt-<name> as `python3 -m dktlbm.<name>`: a separate process."""
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, str(POSTPROC / f"{name}.py"), *map(str, args)],
+    return subprocess.run([sys.executable, "-m", f"dktlbm.{name}", *map(str, args)],
                           capture_output=True, text=True, timeout=120, env=env, cwd=cwd)
 
 
@@ -481,14 +482,25 @@ def test_version(name: str) -> None:
     project = (ROOT / "pyproject.toml").read_text()
     version = re.search(r'^version = "([^"]+)"', project, re.M).group(1)
     assert dktlbm.__version__ == version
-    if name == "suspension":  # no script of its own in postproc/: the module
-        proc = subprocess.run([sys.executable, "-m", "dktlbm.suspension", "--version"],
-                              capture_output=True, text=True, timeout=60,
-                              env={**os.environ, "PYTHONPATH": str(POSTPROC)})
-    else:
-        proc = script(name, "--version")
+    proc = script(name, "--version")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"dkt-{name} {version}"
+
+
+@pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
+def test_old_script_paths_still_run(name: str, tmp_path: Path) -> None:
+    """The scripts beside the package, kept for scripts written before it: `python3
+    postproc/<name>.py` runs dkt-<name> (its --version line) from another directory, and
+    `import dktread` is dktlbm.read, with only postproc/ on the path."""
+    env = {**os.environ, "PYTHONPATH": str(POSTPROC)}
+    proc = subprocess.run([sys.executable, str(POSTPROC / f"{name}.py"), "--version"],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"dkt-{name} ")
+    proc = subprocess.run([sys.executable, "-c", "import dktread, dktlbm.read; "
+                           "assert dktread is dktlbm.read, dktread"],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
 
 
 @pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
@@ -597,7 +609,7 @@ def test_pattern_piped_into_head_ends_quietly(tmp_path: Path) -> None:
     f = tmp_path / "rep.h5"
     syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1))
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    proc = subprocess.Popen([sys.executable, str(POSTPROC / "pattern.py"), str(f)],
+    proc = subprocess.Popen([sys.executable, "-m", "dktlbm.pattern", str(f)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     proc.stdout.close()  # the reader is gone before the first line
     err = proc.stderr.read().decode()
