@@ -391,6 +391,35 @@ def test_trajectories_title_says_what_h_is(tmp_path: Path) -> None:
     assert f"= {run.t_ref:.4g} s with H = {run.h_ref:g} cm" in title and "sqrt{H/g}" in title
 
 
+@pytest.mark.parametrize("extent", [(2.0, 8.0), (2.0, 2.0), (8.0, 2.0)])
+def test_field_axis_labels_lie_inside_the_figure(tmp_path: Path,
+                                                 extent: tuple[float, float]) -> None:
+    """dkt-field's figure of a tall box (case0_box: 2 x 8 cm), a square and a wide window,
+    saved as a PNG: the x and y labels and the colour bar's label lie wholly inside the
+    canvas (their window extents within the figure's bounding box, at the PNG's dpi)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from dktlbm import field
+
+    width, height = extent
+    dx = 0.05
+    data = np.random.default_rng(1).normal(size=(round(height / dx), round(width / dx)))
+    snap = read.Snapshot("vorticity", "000001", 0.25, 100, 0.0, dx, data, None)
+    fig = field.plot(snap, [(width / 2, height / 2, 0.1)], "case0_box: vorticity at t = 0.25 s",
+                     None, None, None)
+    read.save_figure(fig, tmp_path / "field.png", pdf=False)  # as dkt-field saves it
+    fig.set_dpi(150)  # save_figure's resolution, laid out again as in the PNG
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    canvas = fig.bbox
+    ax, bar = fig.axes[0], fig.axes[1]
+    for label in (ax.yaxis.label, ax.xaxis.label, bar.yaxis.label):
+        box = label.get_window_extent(renderer)
+        assert label.get_text() and box.width > 0, label
+        assert (box.x0 >= canvas.x0 and box.x1 <= canvas.x1 and box.y0 >= canvas.y0
+                and box.y1 <= canvas.y1), (label.get_text(), box.bounds, canvas.bounds)
+
+
 def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None:
     """field.py's data: the snapshot nearest --time (snapshots at 0, 1.5, 3 s; 1.1 s picks
     1.5 s), placed at its window offset (extent y from the offset up by ny dx), speed = |u|,
