@@ -1,5 +1,5 @@
-"""`import dktread` gives dktlbm.read (the run-file reader), for code written before the
-package."""
+"""`import dktread` gives dktlbm.read (the run-file reader), kept for code written before the
+package only: use `from dktlbm import read` (postproc/README.md)."""
 
 import sys
 

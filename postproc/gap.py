@@ -1,5 +1,7 @@
 #!/usr/bin/env python3
-"""postproc/gap.py, the old path of dkt-gap (dktlbm.gap)."""
+"""postproc/gap.py, the old path of dkt-gap (dktlbm.gap), kept for scripts written before the
+package only: use `dkt-gap`, or `python3 -m dktlbm.gap` with the package installed or on
+PYTHONPATH (postproc/README.md)."""
 
 import sys
 

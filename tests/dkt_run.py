@@ -7,6 +7,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -20,6 +21,14 @@ INPUT = ROOT / "input"
 # the MPI launch prefix for N ranks and its environment: dktlbm.launch (postproc/dktlbm)
 mpi_command = launch.mpi_prefix
 mpi_env = launch.mpi_env
+
+
+def dkt_command(name: str) -> list[str]:
+    """The command dkt-<name> as its console script starts it (dktlbm.<name>:main), the package
+    found through PYTHONPATH (ctest: <root>/postproc). Not `python3 -m dktlbm.<name>`: under
+    it dktlbm.sweep runs as __main__ and is imported a second time by dktlbm.sweepmap, whose
+    errors then escape the handler that gives them exit status 2."""
+    return [sys.executable, "-c", f"import sys; from dktlbm.{name} import main; sys.exit(main())"]
 
 
 def run(

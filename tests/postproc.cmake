@@ -1,20 +1,23 @@
 # Post-processing (postproc/, Python): the run-file reader and DKT classifier, pattern.py, the
 # plotting scripts' command lines and bad-input handling (synthetic run files and two small
 # real runs, the larger on 2 ranks), and the sweep tool (plan, Slurm array, collect, one real
-# run through `sweep.py run`), and the threshold search `sweep.py bisect` (a stand-in program,
+# run through `dkt-sweep run`), and the threshold search `dkt-sweep bisect` (a stand-in program,
 # here and through Slurm stand-ins, plus one real bisection of ten coarse runs, under a minute).
 dkt_add_pytest(NAME postproc FILE tests/postproc/test_postproc.py LABELS postproc PROCESSORS 2
   TIMEOUT 600)
 # The reader on the old and the new form of the run file, and the values it takes for files
 # without stored scales against what the executable reports (--print-defaults, --check).
 dkt_add_pytest(NAME postproc_read FILE tests/postproc/test_read.py LABELS postproc)
+# Run.to_dataframe() and Run.to_xarray(): the series with their units (pandas and xarray
+# parts skipped where they are not installed: pip install 'dktlbm[frames]').
+dkt_add_pytest(NAME postproc_frames FILE tests/postproc/test_frames.py LABELS postproc)
 # dkt-field --movie: a frame per stored snapshot, MP4 (ffprobe) or GIF without ffmpeg.
 dkt_add_pytest(NAME postproc_movie FILE tests/postproc/test_movie.py LABELS postproc)
 dkt_add_pytest(NAME postproc_sweep FILE tests/postproc/test_sweep.py LABELS postproc
   TIMEOUT 300)
 dkt_add_pytest(NAME postproc_bisect FILE tests/postproc/test_bisect.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)
-# `sweep.py map`: the borders between patterns across gamma and dh, against a stand-in program
+# `dkt-sweep map`: the borders between patterns across gamma and dh, against a stand-in program
 # with two known straight borders (in-process, and once through the command line).
 dkt_add_pytest(NAME postproc_map FILE tests/postproc/test_map.py LABELS postproc
   PROCESSORS 2 TIMEOUT 300)

@@ -2,7 +2,7 @@
 # with stand-ins for srun, sbatch, scontrol and dktlbm, they finish, fail, or stop with a
 # checkpoint and resubmit themselves with --restart, within MAX_RESUBMITS.
 dkt_add_pytest(NAME slurm_scripts FILE tests/test_slurm_scripts.py LABELS unit)
-# The same scripts and `sweep.py slurm` against a real Slurm (tools/slurm-local.sh start): a
+# The same scripts and `dkt-sweep slurm` against a real Slurm (tools/slurm-local.sh start): a
 # chain cut by SIGUSR1 equal to a direct run, a sweep task interrupted and resumed, a sweep
 # collected into a regime map, and a sweep written and submitted by an installed copy.
 # Skipped (in seconds) when `sinfo` reaches no Slurm.

@@ -36,7 +36,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_command, mpi_env, run, session_pids, tree_digest
+from dkt_run import EXE, INPUT, mpi_command, mpi_env, run, session_pids, tree_digest
 from dktlbm import read, sweep
 from test_faults_chk import C1, RANKS, STEPS  # the same runs: checkpoints at STEPS/2, STEPS
 
@@ -56,9 +56,8 @@ def planned(out: Path) -> sweep.PlannedRun:
 
 def cli(name: str, *args: str | Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, str(ROOT / "postproc" / f"{name}.py"),
-                           *map(str, args)], capture_output=True, text=True, timeout=TIMEOUT,
-                          env=env)
+    return subprocess.run([sys.executable, "-m", f"dktlbm.{name}", *map(str, args)],
+                          capture_output=True, text=True, timeout=TIMEOUT, env=env)
 
 
 def assert_refused(h5: Path, why: str = "") -> None:

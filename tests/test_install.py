@@ -1,13 +1,13 @@
 """An installed dktlbm used as a new user would, away from the source tree.
 
 `cmake --install` of this build into a scratch prefix gives bin/dktlbm, the example scenes, the
-Slurm scripts (dkt_job.sh executable) and the documents; the Python package installs with pip
-into a scratch venv (system site packages for numpy, h5py and matplotlib; offline, without
-build isolation, where setuptools and wheel are there, else pip fetches them), from a copy of
-pyproject.toml and postproc/ so that the tree stays clean.
-Then, from an empty directory with only the prefix's bin and the venv's bin on PATH (and the
-MPI launcher's directory after them; no
-DKTLBM_EXE, DKTLBM_ROOT or PYTHONPATH): an example scene runs on 2 ranks, `dkt-gap` draws its
+Slurm scripts (dkt_job.sh executable) and the documents, whose relative links all name
+installed files; the Python package installs with pip into a scratch venv (system site
+packages for numpy, h5py and matplotlib; offline, without build isolation, where setuptools
+and wheel are there, else pip fetches them), from a copy of pyproject.toml and postproc/ so
+that the tree stays clean. Then, from an empty directory with only the prefix's bin and the
+venv's bin on PATH (and the MPI launcher's directory after them; no DKTLBM_EXE, DKTLBM_ROOT or
+PYTHONPATH): an example scene runs on 2 ranks, `dkt-gap` draws its
 PNG, `dkt-pattern` classifies it, and the package the commands import is the venv's, not the
 tree's. `dkt-paraview` answers --help and --version from the install, its render script is the
 venv's copy, and where pvpython is there it draws a PNG of a short run.
@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from dktlbm import launch
+from markdown_links import broken_links
 
 ROOT = Path(os.environ.get("DKTLBM_ROOT", Path(__file__).resolve().parents[1]))
 BUILD = Path(os.environ.get("DKT_BUILD_DIR", ROOT / "build"))
@@ -95,6 +96,19 @@ def test_install_layout(installed: dict[str, Path]) -> None:
     assert pages and sorted(p.name for p in (share / "doc" / "docs").glob("*.md")) == pages
     for name in ("LICENSE", "CHANGELOG.md", "CITATION.cff"):
         assert (share / "doc" / name).is_file() == (ROOT / name).is_file(), name
+
+
+def test_installed_pages_link_only_to_installed_files(installed: dict[str, Path]) -> None:
+    """Every relative link and image of every installed Markdown page (the README, the docs,
+    the examples' and the Slurm scripts' READMEs) names a file of the install, and an anchor
+    names a heading of its page: the pages link to each other as installed, not as in the
+    source tree."""
+    share = installed["prefix"] / "share" / "dktlbm"
+    pages = sorted(share.rglob("*.md"))
+    assert share / "doc" / "README.md" in pages and len(pages) > len(list(ROOT.glob("docs/*.md")))
+    problems = [f"{page.relative_to(share)}: {problem}"
+                for page in pages for problem in broken_links(page, within=installed["prefix"])]
+    assert not problems, "broken links in the install:\n" + "\n".join(problems)
 
 
 def test_a_new_user_runs_an_example_and_plots_it(installed: dict[str, Path],

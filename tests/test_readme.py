@@ -19,8 +19,9 @@ What it proves, each check able to fail:
   README's citation line's and pyproject.toml's.
 
 A dkt-X command runs as `python3 -m dktlbm.X` when the package `dktlbm` of this tree is on
-PYTHONPATH (ctest puts <root>/postproc there), else as the console script on PATH, else as the
-script postproc/X.py that the README says still works.
+PYTHONPATH (ctest puts <root>/postproc there), else as the console script on PATH, else as
+`python3 -m dktlbm.X` with PYTHONPATH=<root>/postproc, the form the README gives for a
+checkout without pip install.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from pathlib import Path
 import pytest
 
 from dkt_run import EXE, ROOT, mpi_command, mpi_env
+from markdown_links import broken_links
 
 README = ROOT / "README.md"
 MAX_LINES = 300
@@ -166,38 +168,9 @@ def test_readme_is_at_most_300_lines() -> None:
     assert lines <= MAX_LINES, f"README.md has {lines} lines, more than {MAX_LINES}"
 
 
-def heading_anchors(markdown: str) -> set[str]:
-    """GitHub's anchors of the headings of a Markdown text (code blocks skipped)."""
-    anchors: set[str] = set()
-    seen: dict[str, int] = {}
-    outside = re.sub(r"^[ \t]*```.*?^[ \t]*```", "", markdown, flags=re.S | re.M)
-    for title in re.findall(r"^#{1,6}\s+(.+?)\s*#*\s*$", outside, flags=re.M):
-        slug = re.sub(r"[^\w\- ]", "", title.strip().lower()).replace(" ", "-")
-        count = seen.get(slug, 0)
-        seen[slug] = count + 1
-        anchors.add(slug if count == 0 else f"{slug}-{count}")
-    return anchors
-
-
-def relative_links(markdown: str) -> list[str]:
-    outside = re.sub(r"^[ \t]*```.*?^[ \t]*```", "", markdown, flags=re.S | re.M)
-    targets = re.findall(r"\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)", outside)
-    targets += re.findall(r"<img[^>]*\ssrc=\"([^\"]+)\"", outside)
-    return [t for t in targets if not re.match(r"[a-z]+:", t)]
-
-
 @pytest.mark.parametrize("page", LINKED_PAGES)
 def test_every_relative_link_resolves(page: str) -> None:
-    source = ROOT / page
-    problems = []
-    for target in relative_links(source.read_text(encoding="utf-8")):
-        path, _, anchor = target.partition("#")
-        file = (source.parent / path).resolve() if path else source
-        if not file.exists():
-            problems.append(f"{target}: no file {file}")
-        elif anchor and file.suffix == ".md":
-            if anchor not in heading_anchors(file.read_text(encoding="utf-8")):
-                problems.append(f"{target}: no heading with anchor #{anchor} in {file.name}")
+    problems = broken_links(ROOT / page)
     assert not problems, f"{page}: broken links:\n" + "\n".join(problems)
 
 
@@ -315,7 +288,7 @@ def tool_runner(name: str) -> list[str]:
     console = shutil.which(name)
     if console:
         return [console]
-    return [sys.executable, str(ROOT / "postproc" / (name.removeprefix("dkt-") + ".py"))]
+    return ["env", f"PYTHONPATH={ROOT / 'postproc'}", sys.executable, "-m", module]
 
 
 def check_tool(runner: list[str], name: str, args: list[str], cwd: Path, what: str) -> None:
@@ -348,9 +321,10 @@ def test_readme_command_works(
         check_pip_install(args, what)
     elif program.startswith("dkt-"):
         check_tool(tool_runner(program), program, args, results_dir, what)
-    elif program == "python3" and args and re.fullmatch(r"postproc/\w+\.py", args[0]):
-        name = "dkt-" + Path(args[0]).stem
-        check_tool([sys.executable, str(ROOT / args[0])], name, args[1:], results_dir, what)
+    elif (program == "PYTHONPATH=postproc" and args[:2] == ["python3", "-m"]
+          and re.fullmatch(r"dktlbm\.\w+", args[2])):
+        runner = ["env", f"PYTHONPATH={ROOT / 'postproc'}", sys.executable, "-m", args[2]]
+        check_tool(runner, "dkt-" + args[2].removeprefix("dktlbm."), args[3:], results_dir, what)
     else:
         pytest.fail(f"README command `{what}` is of a kind tests/test_readme.py does not check")
 

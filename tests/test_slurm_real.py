@@ -1,4 +1,4 @@
-"""input/slurm/ and `sweep.py slurm` against a real Slurm (tools/slurm-local.sh start): the jobs
+"""input/slurm/ and `dkt-sweep slurm` against a real Slurm (tools/slurm-local.sh start): the jobs
 are submitted with sbatch, signalled by Slurm, resubmitted by the scripts and run by srun or
 mpirun as the launcher detection chooses (the local cluster has MpiDefault=none, so a plain
 srun cannot start the Open MPI build). Skipped when no Slurm answers `sinfo`.
@@ -13,18 +13,17 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_env, run
+from dkt_run import EXE, INPUT, ROOT, dkt_command, mpi_env, run
 from dktlbm.read import run_status
 from test_install import install, user_env
 from test_restart import LONG_SETS, assert_same_output
 
-SWEEP_PY = ROOT / "postproc" / "sweep.py"
+SWEEP_PY = dkt_command("sweep")
 
 
 def slurm_up() -> str:
@@ -247,8 +246,7 @@ def test_run_one_chain_cut_by_slurms_time_limit_signal(tmp_path: Path) -> None:
 def plan(out: Path, dhs: str) -> list[dict[str, str]]:
     proc = subprocess.run(
         [
-            sys.executable,
-            str(SWEEP_PY),
+            *SWEEP_PY,
             "plan",
             str(INPUT / "case0.nml"),
             "--dh",
@@ -270,7 +268,7 @@ def plan(out: Path, dhs: str) -> list[dict[str, str]]:
 
 def collect(out: Path) -> dict[str, str]:
     proc = subprocess.run(
-        [sys.executable, str(SWEEP_PY), "collect", "--out", str(out)],
+        [*SWEEP_PY, "collect", "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=300,
@@ -327,7 +325,7 @@ def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
 
 
 def test_sweep_py_slurm_plan_collected_into_a_regime_map(tmp_path: Path) -> None:
-    """`sweep.py slurm` with its default 4 tasks, submitted with --ntasks=1 from another
+    """`dkt-sweep slurm` with its default 4 tasks, submitted with --ntasks=1 from another
     directory than the sweep's (which it finds by itself), runs both rows; a second
     submission skips the finished runs and leaves their logs; collect draws the map."""
     name = "dkt-real-sweep"
@@ -335,8 +333,7 @@ def test_sweep_py_slurm_plan_collected_into_a_regime_map(tmp_path: Path) -> None
     plan(out, "2,2.0001")
     proc = subprocess.run(
         [
-            sys.executable,
-            str(SWEEP_PY),
+            *SWEEP_PY,
             "slurm",
             "--out",
             str(out),

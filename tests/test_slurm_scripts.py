@@ -34,11 +34,13 @@ from pathlib import Path
 
 import pytest
 
+from dkt_run import dkt_command
+
 ROOT = Path(os.environ.get("DKTLBM_ROOT", Path(__file__).resolve().parents[1]))
 SLURM = ROOT / "input" / "slurm"
 RUN_ONE = SLURM / "run_one.slurm"
 SWEEP_ARRAY = SLURM / "sweep_array.slurm"
-SWEEP_PY = ROOT / "postproc" / "sweep.py"
+SWEEP_PY = dkt_command("sweep")
 JOB_ID = "777"
 TASK = 4  # the array index the sweep tests run
 
@@ -214,7 +216,7 @@ def make_run_one(tmp_path: Path) -> Case:
 
 
 def plan_sweep(tmp_path: Path) -> Path:
-    """runs.csv of a 3 x 2 sweep written by `sweep.py plan`, with blanks in the scene's and the
+    """runs.csv of a 3 x 2 sweep written by `dkt-sweep plan`, with blanks in the scene's and the
     sweep's paths and a --set value holding a comma; the plan names an executable that does
     not exist here (DKTLBM replaces it)."""
     scene = tmp_path / "my scenes" / "pair scene.nml"
@@ -222,7 +224,7 @@ def plan_sweep(tmp_path: Path) -> Path:
     scene.write_text("&pair\n  gamma = 2.0, dh = 4.0\n/\n")
     out = tmp_path / "sweep dir"
     proc = subprocess.run(
-        [sys.executable, str(SWEEP_PY), "plan", str(scene), "--gamma", "1,2,3", "--dh", "2,4",
+        [*SWEEP_PY, "plan", str(scene), "--gamma", "1,2,3", "--dh", "2,4",
          "--set", "particles.x=0.9,1.1", "--out", str(out), "--exe", "/cluster/bin/dktlbm"],
         capture_output=True, text=True, timeout=120, env={**os.environ, "MPLBACKEND": "Agg"})
     assert proc.returncode == 0, proc.stderr
@@ -496,7 +498,7 @@ def test_failed_sbatch_is_reported(case: Case) -> None:
 
 def test_array_task_runs_its_plan_row(tmp_path: Path) -> None:
     """Array task 4 runs line 4+1 of runs.csv (after the header): the run g3_h2 of the 3 x 2
-    plan, with the row's arguments as `sweep.py plan` wrote them (the scene path with a blank,
+    plan, with the row's arguments as `dkt-sweep plan` wrote them (the scene path with a blank,
     particles.x=0.9,1.1 as one argument though the CSV field is quoted for its commas), the
     plan's executable replaced by DKTLBM, and output.dir=<sweep dir>/<id>; the run's output
     goes to <sweep dir>/<id>/run.log. An index beyond the plan exits 2 and starts nothing."""

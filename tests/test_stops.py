@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dkt_run import INPUT, ROOT, run, run_args, sigterm_when_logged
+from dkt_run import INPUT, run, run_args, sigterm_when_logged
 from dktlbm.read import text_attr
 
 RANKS = 2
@@ -101,19 +101,19 @@ def test_a_guard_stop_keeps_the_series_csv_and_log_up_to_the_guard_step(guard_ru
 
 
 def test_postproc_says_why_a_guard_stopped_run_ended(guard_run, tmp_path: Path) -> None:
-    """pattern.py and gap.py on the guard-stopped run: they classify and plot what there is
+    """dkt-pattern and dkt-gap on the guard-stopped run: they classify and plot what there is
     and say that the run ended early and why. Catches the old 'the run has no particles' and
     a report that passes a truncated run off as complete."""
     out, _ = guard_run
     env = {**os.environ, "MPLBACKEND": "Agg"}
     h5 = out / "case0_box.h5"
-    pattern = subprocess.run([sys.executable, str(ROOT / "postproc" / "pattern.py"), str(h5)],
+    pattern = subprocess.run([sys.executable, "-m", "dktlbm.pattern", str(h5)],
                              capture_output=True, text=True, timeout=120, env=env)
     assert pattern.returncode == 0, pattern.stderr
     assert "incomplete: the run stopped early (guard: " in pattern.stdout
     assert "ended early (stopped: guard: " in pattern.stderr
     png = tmp_path / "gap.png"
-    gap = subprocess.run([sys.executable, str(ROOT / "postproc" / "gap.py"), str(h5),
+    gap = subprocess.run([sys.executable, "-m", "dktlbm.gap", str(h5),
                           "-o", str(png)], capture_output=True, text=True, timeout=120, env=env)
     assert gap.returncode == 0, gap.stderr
     assert png.is_file() and "ended early" in gap.stderr

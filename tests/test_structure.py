@@ -2,9 +2,11 @@
 checks them, finds each kind of breach: a file over 800 lines, a procedure over 150 lines (a
 host counted with what it contains, continuation lines and strings with '!' handled), an input
 module used for more than its types and constants or without 'only:'. The main program may use
-the input layer freely."""
+the input layer freely. No Python file of postproc/, tests/ or tools/ edits sys.path: each finds
+the package and the test helpers on PYTHONPATH, as ctest and the documented commands set it."""
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -33,6 +35,24 @@ def module(name: str, uses: str = "", procs: str = "") -> str:
 def test_the_sources_keep_the_limits():
     result = run(ROOT / "src")
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+SYS_PATH_EDIT = re.compile(r"\bsys\.path\s*(\[[^\]]*\]\s*)?(=|\+=|\.(insert|append|extend)\b)")
+
+
+def test_no_python_file_edits_sys_path():
+    """An edit of sys.path (assignment, +=, insert, append, extend) in any .py file of
+    postproc/, tests/ or tools/ is named; the pattern finds each form (checked on samples)."""
+    for sample in ("sys.path.insert(0, d)", "sys.path[:0] = [d]", "sys.path += [d]",
+                   "sys.path.append(d)", "sys.path = [d]"):
+        assert SYS_PATH_EDIT.search(sample), sample
+    assert not SYS_PATH_EDIT.search("print(sys.path)")
+    found = [f"{path.relative_to(ROOT)}:{number}"
+             for folder in ("postproc", "tests", "tools") for path in (ROOT / folder).rglob("*.py")
+             if path.name != Path(__file__).name  # this file: the samples above
+             for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+             if SYS_PATH_EDIT.search(line.split("#")[0])]
+    assert not found, "sys.path edited (use PYTHONPATH): " + ", ".join(found)
 
 
 def test_a_long_file_is_found(tmp_path):

@@ -1,7 +1,7 @@
 """A gamma sweep on 2 ranks gives, at every point, bitwise the run on 1 rank.
 
-The sweep a user runs first: `sweep.py plan input/case1.nml --gamma 1:2:0.05` at the paper's
-resolution (25 spacings across the smaller disk), run with `sweep.py run --ranks 2`. Its row
+The sweep a user runs first: `dkt-sweep plan input/case1.nml --gamma 1:2:0.05` at the paper's
+resolution (25 spacings across the smaller disk), run with `dkt-sweep run --ranks 2`. Its row
 counts are even at some points and odd at others, with odd and even nx, which is how the
 uneven-split bug of the window (fixed in f7a9e9b) corrupted about half of such a sweep. Here
 each point runs 750 steps, enough for the window to shift at every gamma (at gamma = 2 it
@@ -18,15 +18,14 @@ from __future__ import annotations
 import csv
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from dkt_run import EXE, INPUT, ROOT, mpi_env
+from dkt_run import EXE, INPUT, dkt_command, mpi_env
 from test_rank_matrix import CASES, datasets
 
-SWEEP = [sys.executable, str(ROOT / "postproc" / "sweep.py")]
+SWEEP = dkt_command("sweep")
 SETS = ["run.steps=750", "output.field_interval=0.02", "output.series_interval=1e-9"]
 
 

@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "postproc")]
+# the package and the rank matrix's cases: postproc/ and tests/ on PYTHONPATH (usage above)
+from dktlbm import launch
+from test_rank_matrix import CASES, datasets
 
-from dktlbm import launch  # noqa: E402
-from test_rank_matrix import CASES, datasets  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_case(exe: Path, case: str, ranks: int, outdir: Path) -> tuple | str:

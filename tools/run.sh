@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Command A: set up and build (tools/setup.sh), then run one scene on MPI ranks; a scene with a
-# pair of particles ends with its DKT pattern (printed by dktlbm) and, when postproc/gap.py is
-# there, the gap plot beside the run's HDF5 file.
+# pair of particles ends with its DKT pattern (printed by dktlbm) and, when the package's
+# postproc/dktlbm/gap.py is there, the gap plot (dkt-gap, from this tree) beside the run's HDF5
+# file.
 #
 #   tools/run.sh [scene.nml] [ranks] [dktlbm options...]
 #
@@ -52,8 +53,8 @@ case "$scene" in "$root"/*) scene=${scene#"$root"/} ;; esac
 h5=$("${launcher[@]}" build/dktlbm "$scene" "$@" --check | sed -n 's/.* into \(.*\.h5\)$/\1/p' |
   tail -n 1)
 "${launcher[@]}" build/dktlbm "$scene" "$@"
-if [ -n "$h5" ] && [ -f postproc/gap.py ] &&
+if [ -n "$h5" ] && [ -f postproc/dktlbm/gap.py ] &&
   python3 -c 'import h5py, sys; sys.exit(0 if "diagnostics" in h5py.File(sys.argv[1]) else 1)' \
     "$h5" 2> /dev/null; then
-  python3 postproc/gap.py "$h5"
+  PYTHONPATH="postproc${PYTHONPATH:+:$PYTHONPATH}" python3 -m dktlbm.gap "$h5"
 fi

@@ -8,8 +8,9 @@ Units are the file's: cm, g, s. The pair is particles 1 and 2; D_1 is the larger
 The scales (t_ref, h_ref, gravity, fluid density and viscosity, D_1, the diameters of the pair)
 and the kissing thresholds are read from the attributes the program stores in /run. For
 files written before it stored them, the values come from the namelist stored in /run, and
-what that does not give from the dktlbm executable itself (`dktlbm FILE --print-defaults`,
-RunSettings): no default is repeated here. When
+what that does not give from the dktlbm executable itself (`dktlbm FILE --print-defaults`
+and `--check`, in dktlbm.settings, the one place that runs it): no default is repeated here.
+When
 the file has a /diagnostics group its series, thresholds, pattern and episodes are used
 as written; otherwise (older files, scenes without a pair group) they are computed here from
 /particles with the same rules (docs/model.md §6):
@@ -32,13 +33,9 @@ same: open_run prints a warning that says why it stopped and that its series end
 from __future__ import annotations
 
 import argparse
-import functools
 import math
 import os
-import re
-import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -48,7 +45,17 @@ from typing import Any
 
 import numpy as np
 
-from .launch import LaunchError, exe, mpi_env
+from .launch import LaunchError
+
+# The namelist parser and the program's settings live in .settings (the fallback for files
+# without stored values); they stay importable from here, as the sweeps and scripts use them.
+from .settings import RunSettings as RunSettings
+from .settings import fortran_float as fortran_float
+from .settings import kiss_cells as kiss_cells
+from .settings import nml_float as nml_float
+from .settings import nml_floats as nml_floats
+from .settings import parse_namelist as parse_namelist
+from .settings import program_settings as program_settings
 
 PATTERNS = ("repeated", "once", "never")
 SERIES = ("x", "y", "u", "v", "omega", "fx", "fy", "torque")
@@ -65,205 +72,7 @@ class RunFileError(Exception):
         self.what = what
 
 
-# ---------------------------------------------------------------- namelist text
-
-_TOKEN = re.compile(r"""'(?:[^']|'')*'|"(?:[^"]|"")*"|&\w+|/|=|,|[^\s,=/'"]+""")
-_KEY = re.compile(r"^([A-Za-z_]\w*)(?:\((\d+)\))?$")
-
-
-def _strip_comment(line: str) -> str:
-    quote = ""
-    for i, ch in enumerate(line):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "'\"":
-            quote = ch
-        elif ch == "!":
-            return line[:i]
-    return line
-
-
-def _unquote(token: str) -> str:
-    if len(token) >= 2 and token[0] == token[-1] and token[0] in "'\"":
-        q = token[0]
-        return token[1:-1].replace(q + q, q)
-    return token
-
-
-def parse_namelist(text: str) -> dict[str, dict[str, list[str]]]:
-    """Namelist text as {group: {key: [values as text]}}, group and key names in lower case.
-    `key(2) = v` sets element 2; a key given twice keeps the last value; strings unquoted."""
-    tokens: list[str] = []
-    for line in text.splitlines():
-        tokens += _TOKEN.findall(_strip_comment(line))
-    groups: dict[str, dict[str, list[str]]] = {}
-    group: dict[str, list[str]] | None = None
-    key: str | None = None
-    index = 0
-    i = 0
-    while i < len(tokens):
-        tok = tokens[i]
-        nxt = tokens[i + 1] if i + 1 < len(tokens) else ""
-        low = tok.lower()
-        if low.startswith("&") and low != "&end":
-            group = groups.setdefault(low[1:], {})
-            key = None
-        elif tok == "/" or low == "&end":
-            group, key = None, None
-        elif group is not None and nxt == "=" and _KEY.match(tok):
-            m = _KEY.match(tok)
-            assert m is not None
-            key = m.group(1).lower()
-            index = int(m.group(2)) - 1 if m.group(2) else 0
-            if m.group(2) is None or key not in group:
-                group[key] = [] if m.group(2) is None else group.get(key, [])
-            i += 1  # the '='
-        elif group is not None and key is not None and tok not in (",", "="):
-            values = group[key]
-            while len(values) <= index:
-                values.append("")
-            values[index] = _unquote(tok)
-            index += 1
-        elif tok == "," and group is not None and key is not None and nxt == ",":
-            index += 1  # an empty item leaves its element unchanged
-        i += 1
-    return groups
-
-
-def fortran_float(text: str) -> float:
-    """A Fortran real literal (1.5, 2e3, 1.0d-2) as a float; ValueError when it is not one."""
-    return float(text.lower().replace("d", "e"))
-
-
-def nml_float(nml: dict[str, dict[str, list[str]]], group: str, key: str, default: float,
-              index: int = 0) -> float:
-    """Element `index` of `&group key` as a number, or `default` when absent or not a number."""
-    values = nml.get(group, {}).get(key, [])
-    if index < len(values) and values[index] != "":
-        try:
-            return fortran_float(values[index])
-        except ValueError:
-            return default
-    return default
-
-
-def nml_floats(nml: dict[str, dict[str, list[str]]], group: str, key: str) -> list[float]:
-    out = []
-    for v in nml.get(group, {}).get(key, []):
-        try:
-            out.append(fortran_float(v))
-        except ValueError:
-            out.append(math.nan)
-    return out
-
-
-# ---------------------------------------------------------------- the program's settings
-
 LIMIT_KEYS = ("enter_cells", "enter_d1", "release_cells", "release_d1")
-
-
-def _dktlbm(args: list[str], scene: str | None, what: str) -> str:
-    """stdout of `dktlbm [SCENE] args`, SCENE being namelist text written to a scratch file;
-    LaunchError with the program's message when it cannot run or refuses."""
-    program = exe()
-    with tempfile.TemporaryDirectory(prefix="dktlbm-") as tmp:
-        command = [program, *args]
-        if scene is not None:
-            path = Path(tmp) / "scene.nml"
-            path.write_text(scene)
-            command.insert(1, str(path))
-        try:
-            proc = subprocess.run(command, capture_output=True, text=True, cwd=tmp,
-                                  env=mpi_env(), timeout=120)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise LaunchError(f"cannot run {program} for {what}: {exc}") from None
-    if proc.returncode != 0:
-        message = (proc.stderr.strip() or proc.stdout.strip()).splitlines()
-        raise LaunchError(f"{program} refused {what} (exit status {proc.returncode}): "
-                          f"{message[-1] if message else 'no message'}")
-    return proc.stdout
-
-
-def _overlay(values: list[str], given: list[str]) -> list[str]:
-    """`values` with each element that `given` sets (not '') in its place."""
-    out = list(values)
-    for i, v in enumerate(given):
-        if v != "":
-            out.extend([""] * (i + 1 - len(out)))
-            out[i] = v
-    return out
-
-
-@functools.cache
-def program_settings(text: str | None = None) -> dict[str, dict[str, list[str]]]:
-    """Every input key as dktlbm makes it of the namelist `text` (None: its defaults), from
-    `dktlbm FILE --print-defaults`: {group: {key: [values as text]}}. When the program
-    refuses the text (a scene it does not accept as a whole), its defaults with the text's
-    own values over them. LaunchError when the executable (dktlbm.launch.exe) cannot say."""
-    if text is not None:
-        try:
-            return parse_namelist(_dktlbm(["--print-defaults"], text, "the stored namelist"))
-        except LaunchError:
-            merged = {g: dict(keys) for g, keys in program_settings(None).items()}
-            for group, keys in parse_namelist(text).items():
-                into = merged.setdefault(group, {})
-                for key, values in keys.items():
-                    into[key] = _overlay(into.get(key, []), values)
-            return merged
-    return parse_namelist(_dktlbm(["--print-defaults"], None, "--print-defaults"))
-
-
-_KISS_LINE = re.compile(r"kissing episode starts at D_r <=\s*([0-9.]+) spacings and ends at "
-                        r"D_r >\s*([0-9.]+) spacings")
-
-
-@functools.cache
-def kiss_cells(enter_cells: float, release_cells: float,
-               collision_range: float) -> tuple[float, float]:
-    """The kissing thresholds in lattice spacings that dktlbm uses for &diagnostics
-    enter_cells, release_cells and &collision range (enter_cells = 0 stands for a rule of the
-    program's), as `dktlbm --check` reports them for a probe pair with enter_d1 = release_d1
-    = 0. LaunchError when the executable cannot say."""
-    probe = "&particles\n  count = 2, x = 0.5, 1.5, y = 2.5, 2.5\n/\n"
-    sets = {"collision.range": collision_range, "diagnostics.enter_cells": enter_cells,
-            "diagnostics.release_cells": release_cells, "diagnostics.enter_d1": 0.0,
-            "diagnostics.release_d1": 0.0}
-    with tempfile.TemporaryDirectory(prefix="dktlbm-") as out:
-        args = ["--check", "--set", f"output.dir={out}/run"]
-        for key, value in sets.items():
-            args += ["--set", f"{key}={value!r}"]
-        report = _dktlbm(args, probe, "the kissing-threshold probe")
-    found = _KISS_LINE.search(report)
-    if found is None:
-        raise LaunchError("dktlbm --check printed no kissing thresholds for a probe pair")
-    return float(found.group(1)), float(found.group(2))
-
-
-class RunSettings:
-    """The input of a run: the namelist text stored in /run, and for the keys it does not give
-    what dktlbm makes of it (program_settings, asked once and only when needed)."""
-
-    def __init__(self, text: str) -> None:
-        self.text = text
-        self.given = parse_namelist(text)
-
-    def values(self, group: str, key: str) -> list[str]:
-        """The values of `&group key` as text, element by element: the namelist's, else the
-        program's."""
-        given = self.given.get(group, {}).get(key, [])
-        if given and all(v != "" for v in given):
-            return given
-        merged = _overlay(program_settings(self.text).get(group, {}).get(key, []), given)
-        if not merged:
-            raise LaunchError(f"dktlbm knows no input key {group}.{key}")
-        return merged
-
-    def number(self, group: str, key: str, index: int = 0) -> float:
-        """Element `index` of `&group key` as a number (the last element for an index past
-        the end: a default array shorter than the particle count)."""
-        values = self.values(group, key)
-        return fortran_float(values[min(index, len(values) - 1)])
 
 
 # ---------------------------------------------------------------- the run file
@@ -426,6 +235,21 @@ class Run:
 
     def label(self) -> str:
         return self.name
+
+    def to_dataframe(self) -> Any:
+        """The particle series as a pandas DataFrame indexed by (particle, t), units in
+        `df.attrs["units"]` (dktlbm.frames). ImportError naming the package without pandas."""
+        from .frames import to_dataframe
+
+        return to_dataframe(self)
+
+    def to_xarray(self) -> Any:
+        """The particle series and diameters as an xarray Dataset over (particle, t), each
+        variable's unit in its attrs (dktlbm.frames). ImportError naming the package without
+        xarray."""
+        from .frames import to_xarray
+
+        return to_xarray(self)
 
 
 def _read_diagnostics(h5: Any) -> dict[str, Any] | None:
@@ -801,23 +625,34 @@ def pair_of(run: Run, limits: dict[str, float] | None = None,
 
 def _limits(run: Run, d1: float, limits: dict[str, float] | None,
             attrs: dict[str, Any] | None = None) -> Thresholds:
-    """Thresholds from the run's settings (as stored in /run or /diagnostics, else its
-    namelist and dktlbm's defaults) with `limits` (given by the user) taking precedence. An
-    enter_cells of 0 (the program's rule on collision.range) is resolved by kiss_cells."""
-    stored = {k: run.run_attrs.get(f"kiss_{k}") for k in LIMIT_KEYS}
+    """The thresholds the run used, with `limits` (given by the user) taking precedence: the
+    /run attributes kiss_enter_cells, kiss_release_cells, kiss_enter_d1, kiss_release_d1 that
+    a pair's run file stores (enter_cells as it acted), else the /diagnostics attributes
+    `attrs` for the two in spacings; what the file does not give, _from_settings."""
+    values = {k: run.run_attrs[f"kiss_{k}"] for k in LIMIT_KEYS if f"kiss_{k}" in run.run_attrs}
     for key in ("enter_cells", "release_cells"):
-        if stored[key] is None and attrs and f"kiss_{key}" in attrs:
-            stored[key] = _num(attrs[f"kiss_{key}"], f"kiss_{key}")
-    base = {k: v if v is not None else run.settings.number("diagnostics", k)
-            for k, v in stored.items()}
+        if key not in values and attrs and f"kiss_{key}" in attrs:
+            values[key] = _num(attrs[f"kiss_{key}"], f"kiss_{key}")
     given = {k: v for k, v in (limits or {}).items() if v is not None}
-    merged = {**base, **given}
-    if merged["enter_cells"] <= 0:
-        merged["enter_cells"], merged["release_cells"] = kiss_cells(
-            merged["enter_cells"], merged["release_cells"],
-            run.settings.number("collision", "range"))
+    values.update(given)
+    if len(values) < len(LIMIT_KEYS) or values["enter_cells"] <= 0:
+        values = _from_settings(run, values)
     rule = "given on the command line" if given else "the run's settings"
-    return thresholds(run.dx, d1, rule=rule, **merged)
+    return thresholds(run.dx, d1, rule=rule, **values)
+
+
+def _from_settings(run: Run, values: dict[str, float]) -> dict[str, float]:
+    """The one fallback for thresholds a run file does not store (files written before
+    dktlbm 0.1.0, scenes without a pair) and for an enter_cells of 0 given by the user:
+    `values` completed from &diagnostics of the run's settings (its stored namelist, else
+    dktlbm's defaults), and enter_cells = 0, the program's rule on collision.range, resolved
+    as `dktlbm --check` reports it (kiss_cells). Either may run the executable."""
+    out = {k: values[k] if k in values else run.settings.number("diagnostics", k)
+           for k in LIMIT_KEYS}
+    if out["enter_cells"] <= 0:
+        out["enter_cells"], out["release_cells"] = kiss_cells(
+            out["enter_cells"], out["release_cells"], run.settings.number("collision", "range"))
+    return out
 
 
 def _pair_from_particles(run: Run, limits: dict[str, float] | None) -> Pair:

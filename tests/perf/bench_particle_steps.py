@@ -12,8 +12,12 @@ set-up, validation and output of the first two steps cancelling. Prints the medi
 and maximum over the repeats (ms per step). The parts of it (contact forces, link search) are
 timed apart by build/tests/bench_particles.
 
-    tests/perf/bench_particle_steps.py                     # build/dktlbm, 1024 and 10^4 disks
-    tests/perf/bench_particle_steps.py --sides 32 --steps 40 --repeats 5 --ranks 1
+    PYTHONPATH=postproc:tests tests/perf/bench_particle_steps.py    # 1024 and 10^4 disks
+    PYTHONPATH=postproc:tests tests/perf/bench_particle_steps.py --sides 32 --steps 40 \
+        --repeats 5 --ranks 1
+
+(build/dktlbm; like the other scripts here it finds the package and the test helpers on
+PYTHONPATH, as ctest sets it.)
 """
 
 from __future__ import annotations
@@ -23,12 +27,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the scene
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import benchlib
 
-import benchlib  # noqa: E402
-
-from test_faults_scale import lattice_scene  # noqa: E402
+from test_faults_scale import lattice_scene  # tests/ on PYTHONPATH: the scene
 
 
 def timed(command: list[str]) -> float:

@@ -1,10 +1,10 @@
-"""postproc/sweep.py bisect: the threshold search over pair.gamma or pair.dh.
+"""dkt-sweep bisect: the threshold search over pair.gamma or pair.dh.
 
 Most tests run the search against a stand-in program (bisect_fake.py) whose pattern is a known
 step function of the value (threshold 1.37; just below it the second kiss comes late, so the
 pattern at t_end = 4 s is 'once' with the pair closing in, not settled, and needs t_end = 8 s;
 from 1.9 on the upper particle leaves the window unless window.above is 60), called in-process,
-through `sweep.py bisect` with a stand-in mpiexec, and through Slurm stand-ins (sbatch --wait
+through `dkt-sweep bisect` with a stand-in mpiexec, and through Slurm stand-ins (sbatch --wait
 running the array tasks under bash, srun executing its arguments). One test bisects a real
 coarse scene. Each test's docstring says what it proves."""
 
@@ -25,10 +25,10 @@ from pathlib import Path
 import bisect_fake as fake
 import pytest
 
-from dkt_run import EXE, ROOT, mpi_env
+from dkt_run import EXE, ROOT, dkt_command, mpi_env
 from dktlbm import sweep
 
-SWEEP = ROOT / "postproc" / "sweep.py"
+SWEEP = dkt_command("sweep")
 FAKE = Path(__file__).resolve().parent / "bisect_fake.py"
 T_END = 4.0
 SCENE = """! a pair scene for the bisection tests (run only by the stand-in)
@@ -265,7 +265,7 @@ def sweep_cli(
     *args: str | Path, env: dict[str, str], timeout: float = 120.0
 ) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, str(SWEEP), *map(str, args)],
+        [*SWEEP, *map(str, args)],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -280,7 +280,7 @@ def fake_bisect(base: Path, out: Path) -> list[str | Path]:
 
 
 def test_command_line_local_and_collect(tmp_path: Path, base: Path) -> None:
-    """`sweep.py bisect` here (runs through run_plan with a stand-in mpiexec): exit 0, the
+    """`dkt-sweep bisect` here (runs through run_plan with a stand-in mpiexec): exit 0, the
     summary line last, a progress line per run (K of N of each step), bisect.csv with a row
     per run and the bracket, runs.csv holding every run with the plan's command form;
     `collect` on the same directory adds status, t_end, settled and left_window after the
@@ -456,7 +456,7 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
     for end in (lo, hi):
         h5 = Path(end["dir"]) / "case2.h5"
         report = subprocess.run(
-            [sys.executable, str(ROOT / "postproc" / "pattern.py"), str(h5), "--json"],
+            [sys.executable, "-m", "dktlbm.pattern", str(h5), "--json"],
             capture_output=True,
             text=True,
             timeout=60,

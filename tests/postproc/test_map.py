@@ -5,7 +5,7 @@ The tests run the map against a stand-in program (map_fake.py) whose pattern is 
 function of (gamma, dh) with two straight borders ('repeated' for gamma < 1.23 + 0.1 dh, 'once'
 for gamma < 1.97 + 0.13 dh, else 'never'; just below the first border the second kiss comes
 late, so a point there settles only at t_end = 8 s; a 'never' point leaves a 15-D_1 window and
-settles at 30), called in-process, and once through `sweep.py map` with a stand-in mpiexec.
+settles at 30), called in-process, and once through `dkt-sweep map` with a stand-in mpiexec.
 Each test's docstring says what it proves."""
 
 from __future__ import annotations
@@ -14,17 +14,16 @@ import csv
 import os
 import stat
 import subprocess
-import sys
 from pathlib import Path
 
 import map_fake as fake
 import pytest
 
-from dkt_run import ROOT
+from dkt_run import dkt_command
 from dktlbm import sweepmap
 from dktlbm.sweep import PlannedRun, SweepError
 
-SWEEP = ROOT / "postproc" / "sweep.py"
+SWEEP = dkt_command("sweep")
 FAKE = Path(__file__).resolve().parent / "map_fake.py"
 T_END = 4.0
 SCENE = """! a pair scene for the map tests (run only by the stand-in)
@@ -333,13 +332,13 @@ def stand_in(path: Path, text: str) -> Path:
 
 
 def sweep_cli(*args: str | Path, env: dict[str, str]) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
+    return subprocess.run([*SWEEP, *map(str, args)], capture_output=True,
                           text=True, timeout=300, env={**env, "MPLBACKEND": "Agg"})
 
 
 def test_command_line_writes_the_tables_and_a_real_figure(tmp_path: Path, base: Path,
                                                           log: Path) -> None:
-    """`sweep.py map` here (run_plan with a stand-in mpiexec, 2 jobs): exit 0, the summary
+    """`dkt-sweep map` here (run_plan with a stand-in mpiexec, 2 jobs): exit 0, the summary
     line last; map.csv and borders.csv with their columns, every bracket within tolerance
     of the truth; map.png an image matplotlib reads, of the figure's size and more than a
     few colours (not blank). The same command again runs nothing (the stand-in's log does

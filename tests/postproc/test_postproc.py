@@ -1,7 +1,8 @@
-"""The post-processing scripts (postproc/): the run-file reader, the DKT classifier, pattern.py,
-the plotting scripts' command lines and their handling of bad input, on synthetic run files
-whose gap curves cross the thresholds at known times (tests/postproc/synthetic.py) and on two
-small real runs. Each test's docstring says what it proves."""
+"""The post-processing package (postproc/dktlbm): the run-file reader, the DKT classifier,
+dkt-pattern, the plotting commands' command lines and their handling of bad input, on
+synthetic run files whose gap curves cross the thresholds at known times
+(tests/postproc/synthetic.py) and on two small real runs; and the old script paths beside the
+package. Each test's docstring says what it proves."""
 
 from __future__ import annotations
 
@@ -27,9 +28,9 @@ SCRIPTS = [*PLOTS, "pattern"]
 
 
 def script(name: str, *args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run postproc/<name>.py as a user does: a separate python3 process."""
+    """Run the command dkt-<name> as `python3 -m dktlbm.<name>`: a separate process."""
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, str(POSTPROC / f"{name}.py"), *map(str, args)],
+    return subprocess.run([sys.executable, "-m", f"dktlbm.{name}", *map(str, args)],
                           capture_output=True, text=True, timeout=120, env=env, cwd=cwd)
 
 
@@ -390,6 +391,35 @@ def test_trajectories_title_says_what_h_is(tmp_path: Path) -> None:
     assert f"= {run.t_ref:.4g} s with H = {run.h_ref:g} cm" in title and "sqrt{H/g}" in title
 
 
+@pytest.mark.parametrize("extent", [(2.0, 8.0), (2.0, 2.0), (8.0, 2.0)])
+def test_field_axis_labels_lie_inside_the_figure(tmp_path: Path,
+                                                 extent: tuple[float, float]) -> None:
+    """dkt-field's figure of a tall box (case0_box: 2 x 8 cm), a square and a wide window,
+    saved as a PNG: the x and y labels and the colour bar's label lie wholly inside the
+    canvas (their window extents within the figure's bounding box, at the PNG's dpi)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from dktlbm import field
+
+    width, height = extent
+    dx = 0.05
+    data = np.random.default_rng(1).normal(size=(round(height / dx), round(width / dx)))
+    snap = read.Snapshot("vorticity", "000001", 0.25, 100, 0.0, dx, data, None)
+    fig = field.plot(snap, [(width / 2, height / 2, 0.1)], "case0_box: vorticity at t = 0.25 s",
+                     None, None, None)
+    read.save_figure(fig, tmp_path / "field.png", pdf=False)  # as dkt-field saves it
+    fig.set_dpi(150)  # save_figure's resolution, laid out again as in the PNG
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    canvas = fig.bbox
+    ax, bar = fig.axes[0], fig.axes[1]
+    for label in (ax.yaxis.label, ax.xaxis.label, bar.yaxis.label):
+        box = label.get_window_extent(renderer)
+        assert label.get_text() and box.width > 0, label
+        assert (box.x0 >= canvas.x0 and box.x1 <= canvas.x1 and box.y0 >= canvas.y0
+                and box.y1 <= canvas.y1), (label.get_text(), box.bounds, canvas.bounds)
+
+
 def test_field_snapshot_and_particles_at_the_chosen_time(tmp_path: Path) -> None:
     """field.py's data: the snapshot nearest --time (snapshots at 0, 1.5, 3 s; 1.1 s picks
     1.5 s), placed at its window offset (extent y from the offset up by ny dx), speed = |u|,
@@ -481,14 +511,25 @@ def test_version(name: str) -> None:
     project = (ROOT / "pyproject.toml").read_text()
     version = re.search(r'^version = "([^"]+)"', project, re.M).group(1)
     assert dktlbm.__version__ == version
-    if name == "suspension":  # no script of its own in postproc/: the module
-        proc = subprocess.run([sys.executable, "-m", "dktlbm.suspension", "--version"],
-                              capture_output=True, text=True, timeout=60,
-                              env={**os.environ, "PYTHONPATH": str(POSTPROC)})
-    else:
-        proc = script(name, "--version")
+    proc = script(name, "--version")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"dkt-{name} {version}"
+
+
+@pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
+def test_old_script_paths_still_run(name: str, tmp_path: Path) -> None:
+    """The scripts beside the package, kept for scripts written before it: `python3
+    postproc/<name>.py` runs dkt-<name> (its --version line) from another directory, and
+    `import dktread` is dktlbm.read, with only postproc/ on the path."""
+    env = {**os.environ, "PYTHONPATH": str(POSTPROC)}
+    proc = subprocess.run([sys.executable, str(POSTPROC / f"{name}.py"), "--version"],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"dkt-{name} ")
+    proc = subprocess.run([sys.executable, "-c", "import dktread, dktlbm.read; "
+                           "assert dktread is dktlbm.read, dktread"],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
 
 
 @pytest.mark.parametrize("name", [*SCRIPTS, "sweep"])
@@ -597,7 +638,7 @@ def test_pattern_piped_into_head_ends_quietly(tmp_path: Path) -> None:
     f = tmp_path / "rep.h5"
     syn.write_run(f, syn.SHAPES["repeated"], (0.2, 0.1))
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    proc = subprocess.Popen([sys.executable, str(POSTPROC / "pattern.py"), str(f)],
+    proc = subprocess.Popen([sys.executable, "-m", "dktlbm.pattern", str(f)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     proc.stdout.close()  # the reader is gone before the first line
     err = proc.stderr.read().decode()

@@ -9,6 +9,9 @@
   executable reports for the stored namelist (`--print-defaults`, and `--check` for the
   thresholds), parsed here independently of the reader; when the executable refuses the
   stored namelist, its defaults with the namelist's values over them.
+- For a file that stores the kissing thresholds in /run (every pair's file since 0.1.0), the
+  reader takes them from there and never runs the executable, also with thresholds given by
+  the user over some of them.
 """
 
 from __future__ import annotations
@@ -205,3 +208,30 @@ def test_a_namelist_the_executable_refuses_takes_its_defaults_under_its_values(
     run = read.open_run(f)
     assert run.t_ref == printed(out, "run", "t_ref")[0]
     np.testing.assert_array_equal(run.diameters, [printed(out, "particles", "diameter")[0], 0.1])
+
+
+def test_stored_thresholds_need_no_executable(tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """/run kiss_enter_cells, kiss_release_cells, kiss_enter_d1, kiss_release_d1 (values no
+    namelist or default gives: 2.75, 5.5, 0.01, 0.3) are the thresholds of a file without
+    /diagnostics (its scales stored too), classified from /particles with DKTLBM_EXE naming no
+    program; a user's release_d1 replaces only its own value. Fails if any of them is looked
+    up elsewhere."""
+    f = tmp_path / "stored.h5"
+    syn.write_run(f, syn.SHAPES["once"], (0.2, 0.1), fields=False)
+    stored = {"enter_cells": 2.75, "release_cells": 5.5, "enter_d1": 0.01, "release_d1": 0.3}
+    scales = {"t_ref": 0.135526, "gravity": 980.0, "h_ref": 18.0, "width": syn.WIDTH,
+              "rho_f": 1.0, "mu": 0.01, "d1": 0.2, "diameter_1": 0.2, "diameter_2": 0.1}
+    with h5py.File(f, "r+") as h5:
+        for key, value in stored.items():
+            h5["run"].attrs[f"kiss_{key}"] = value
+        for key, value in scales.items():  # as a file of 0.1.0 stores them
+            h5["run"].attrs[key] = value
+    monkeypatch.setenv("DKTLBM_EXE", str(tmp_path / "no-such-dktlbm"))
+    run = read.open_run(f)
+    limits = read.pair_of(run).limits
+    assert limits.enter == pytest.approx(max(2.75 * syn.DX, 0.01 * 0.2))
+    assert limits.release == pytest.approx(max(5.5 * syn.DX, 0.3 * 0.2))
+    given = read.pair_of(run, limits={"release_d1": 0.5}).limits
+    assert (given.enter, given.release) == (limits.enter,
+                                            pytest.approx(max(5.5 * syn.DX, 0.5 * 0.2)))

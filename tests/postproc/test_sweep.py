@@ -1,4 +1,4 @@
-"""postproc/sweep.py: the value lists, the plan (runs.csv), the Slurm job array (run with a
+"""dkt-sweep: the value lists, the plan (runs.csv), the Slurm job array (run with a
 stand-in srun), collecting patterns into the regime map from synthetic run directories, and
 running a one-run plan of a small real scene here. Each test's docstring says what it
 proves."""
@@ -19,10 +19,10 @@ from pathlib import Path
 import pytest
 import synthetic as syn
 
-from dkt_run import EXE, ROOT, mpi_env
+from dkt_run import EXE, ROOT, dkt_command, mpi_env
 from dktlbm import sweep
 
-SWEEP = ROOT / "postproc" / "sweep.py"
+SWEEP = dkt_command("sweep")
 BASE_TEXT = """! a pair scene for the plan tests (never run; dkt-sweep plan checks its corners)
 &pair
   gamma = 2.0, dh = 4.0, y_upper = 4.0
@@ -32,7 +32,7 @@ BASE_TEXT = """! a pair scene for the plan tests (never run; dkt-sweep plan chec
 
 def sweep_cli(*args: str | Path, env: dict[str, str] | None = None,
               timeout: float = 120.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
+    return subprocess.run([*SWEEP, *map(str, args)], capture_output=True,
                           text=True, timeout=timeout,
                           env={**os.environ, "MPLBACKEND": "Agg", **(env or {})})
 
