@@ -21,14 +21,16 @@ where the pattern changes, N runs per step; its runs are rows of DIR/runs.csv li
 A pattern counts only when it is settled. 'repeated' is final as soon as a run has it (episodes
 only add). 'once' and 'never' are settled when the episodes that start by t_end/2 give the same
 pattern as all of them and the pair is neither closing in nor out of line at t_end (centres
-more than D_1/2 apart across the channel); otherwise the point runs again
-with t_end doubled, up to --max-t-end. A run that ended by window_escape is never final by
-itself: the point runs again with window.above doubled, up to --max-above. With a window that
-grows (--grow, or window.max_above set in the scene or a --set) each run's window grows by
-itself up to its limit (docs/model.md §5), so no point runs again for an escape: one at the
-limit stops the bisection. `collect` reports both in regime.csv. With --kiss (a
-once-to-never threshold) 'once' and 'repeated' are one class,
-'kisses', final as soon as a run has a kissing episode.
+more than D_1/2 apart across the channel); otherwise the point runs again with t_end
+doubled, up to --max-t-end. --max-above means what the key window.max_above means: the longest
+the window may be above the lowest particle's centre, in D_1 (default: the runs'
+window.max_above, else 4 times window.above). A run that ended by window_escape is never final
+by itself: the point runs again with window.above doubled, up to --max-above. With a window
+that grows (--grow, or window.max_above set in the scene or a --set) each run's window grows
+by itself up to that limit (docs/model.md §5), so no point runs again for an escape: one at
+the limit stops the bisection. `collect` reports both in regime.csv. With --kiss (a
+once-to-never threshold) 'once' and 'repeated' are one class, 'kisses', final as soon as a
+run has a kissing episode.
 
 `map` runs a grid over both keys and bisects, by the same rules, every grid edge whose ends
 differ: DIR/map.csv, DIR/borders.csv and DIR/map.png (`dkt-sweep map --help`).
@@ -227,9 +229,10 @@ def parser() -> argparse.ArgumentParser:
         "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
         "whose pair is closing in, or out of line (centres more than D_1/2 apart across the "
         "channel), at t_end is not settled. A run ended by window_escape is "
-        "never final: the point runs again with window.above doubled, up to --max-above; with "
-        "--grow (or window.max_above in the scene) each run's window grows by itself up to its "
-        "limit instead, and an escape at the limit stops the bisection. With "
+        "never final: the point runs again with window.above doubled, up to --max-above (the "
+        "longest the window may be above the lowest particle's centre, as window.max_above); "
+        "with --grow (or window.max_above in the scene or a --set) each run's window grows by "
+        "itself up to that limit instead, and an escape at the limit stops the bisection. With "
         "--kiss only a kiss is told from none: a run with a kissing episode is final at once. A "
         "run stopped by a guard or an error stops the bisection. Every run is DIR/<id> and a row "
         "of DIR/runs.csv (collect and plot as a sweep); DIR/bisect.csv lists every run and "
@@ -260,12 +263,16 @@ def search_options(q: argparse.ArgumentParser, jobs_help: str) -> None:
                    help="the longest run.t_end (s) a point may need to settle (default: 8 "
                    "times the first)")
     q.add_argument("--max-above", type=float, metavar="D",
-                   help="the largest window.above (in D_1) a point may need to hold both "
-                   "particles (default: 4 times the first, the scene's or --set's)")
+                   help="the longest the window may be above the lowest particle's centre, "
+                   "in D_1, as the key window.max_above: a point that leaves the window runs "
+                   "again with window.above doubled up to it, or, when the runs' windows grow "
+                   "(--grow, or window.max_above in the scene or a --set), each run's window "
+                   "grows up to it (default: the runs' window.max_above when they set one, "
+                   "else 4 times window.above)")
     q.add_argument("--grow", action="store_true",
-                   help="let each run's window grow up to --max-above (window.max_above, "
-                   "docs/model.md section 5) instead of running a point again with "
-                   "window.above doubled after a window escape")
+                   help="let each run's window grow up to --max-above (added to every run as "
+                   "window.max_above, docs/model.md section 5) instead of running a point "
+                   "again with window.above doubled after a window escape")
     q.add_argument("--kiss", action="store_true",
                    help="tell only whether the pair kisses: 'once' and 'repeated' are one "
                    "class, 'kisses', final as soon as a run has a kissing episode (for a once "
@@ -302,13 +309,16 @@ def _bisect_command(args: argparse.Namespace) -> int:
 
 
 def search_fields(args: argparse.Namespace, base: Path) -> dict[str, object]:
-    """The SearchSettings fields of a search (search_options) of the scene `base`: the first
-    run.t_end and window.above (the scene's or --set's; the program's window.above when
-    neither gives it) and the largest a point may use; the --set list of the runs and the
-    window.max_above they grow to (0: their windows do not grow): the scene's or --set's
-    window.max_above, else with --grow the search's --max-above, added to the --set list so
-    that a rerun's identity includes it. SweepError for a bad value, and for --jobs, --ranks
-    or --ntasks below 1."""
+    """The SearchSettings fields of a search (search_options) of the scene `base`. t_end and
+    above are the runs' first run.t_end and window.above (the scene's or a --set's; the
+    program's window.above when neither gives it); max_t_end is --max-t-end, else 8 t_end.
+    max_above means what the key window.max_above means, the longest the window may be above
+    the lowest particle's centre (D_1): --max-above, else the runs' window.max_above when the
+    scene or a --set gives one (> 0), else 4 above. When the runs' windows grow (that key, or
+    --grow, which adds window.max_above=max_above to the --set list so that a rerun's identity
+    includes it), grow = max_above, else 0. SweepError for a bad value, for --max-above and a
+    window.max_above that differ (they are one limit), and for --jobs, --ranks or --ntasks
+    below 1."""
     if args.jobs < 1 or args.ranks < 1 or args.ntasks < 1:
         raise SweepError("--jobs, --ranks and --ntasks must be at least 1")
     t_end, text = scene_number(base, args.sets, "run.t_end")
@@ -322,19 +332,21 @@ def search_fields(args: argparse.Namespace, base: Path) -> dict[str, object]:
     if not (above is not None and math.isfinite(above) and above >= 1):
         raise SweepError(f"{base}: &window above is not a number >= 1 ({text!r}); set it with "
                          f"--set window.above=D (in D_1)")
-    max_above = args.max_above if args.max_above is not None else 4 * above
+    sets = list(args.sets)
+    grown, text = scene_number(base, sets, "window.max_above")
+    grows = grown is not None and math.isfinite(grown) and grown > 0
+    if grows and args.max_above is not None and args.max_above != grown:
+        raise SweepError(f"--max-above {args.max_above:g} and window.max_above = {text} (the "
+                         f"scene's or a --set's) are one limit, the longest the window may be "
+                         f"above the lowest particle: give one of them")
+    max_above = args.max_above if args.max_above is not None else grown if grows else 4 * above
     if not max_above >= above:
         raise SweepError(f"--max-above {max_above:g} is below window.above = {above:g} D_1")
-    sets = list(args.sets)
-    grow, _ = scene_number(base, sets, "window.max_above")
-    if grow is None or not math.isfinite(grow) or grow <= 0:
-        grow = 0.0
-        if args.grow:
-            grow = max_above
-            sets.append(f"window.max_above={max_above:g}")
+    if args.grow and not grows:
+        sets.append(f"window.max_above={max_above:g}")
     return {"sets": sets, "out": args.out.resolve(), "exe": args.exe or default_exe(),
             "t_end": t_end, "max_t_end": max_t_end, "above": above, "max_above": max_above,
-            "kiss": args.kiss, "grow": grow}
+            "kiss": args.kiss, "grow": max_above if grows or args.grow else 0.0}
 
 
 def search_launcher(args: argparse.Namespace, out: Path):

@@ -273,7 +273,8 @@ class Bisector:
                     self._give_up(done, target, value, v, r, (
                         f"run {r.dir} ({name}, {at}): {v.why}, in a window grown to its limit "
                         f"window.max_above = {c.grow:g} D_1; its pattern ({v.pattern} so far) "
-                        f"is not final: raise --max-above (or window.max_above), or bracket "
+                        f"is not final: raise the limit (--max-above with --grow, or the "
+                        f"window.max_above the scene or a --set gives), or bracket "
                         f"away from this value"))
                 elif v.status == "window_escape":
                     if 2 * above > c.max_above * (1 + 1e-12):

@@ -255,6 +255,34 @@ def test_grow_option_puts_the_limit_into_every_run(tmp_path: Path, base: Path) -
             assert not any(a.startswith("window.above=") for a in args), args
 
 
+def test_max_above_means_what_window_max_above_means(tmp_path: Path, base: Path) -> None:
+    """--max-above is the longest the window may be above the lowest particle's centre, the
+    meaning of the key window.max_above: runs that set window.max_above = 40 (a --set) search
+    up to 40 D_1 without --max-above (not 4 x window.above = 60) and grow up to it; --grow
+    --max-above 40 adds window.max_above=40 to the runs; without either the limit is
+    4 x window.above and the windows do not grow. --max-above with a different
+    window.max_above is refused with one error line naming both, exit 2 (before any run)."""
+    def fields(*extra: str) -> dict[str, object]:
+        args = sweep.parser().parse_args([str(x) for x in fake_bisect(base, tmp_path / "o")]
+                                         + list(extra))
+        return sweep.search_fields(args, base)
+
+    got = fields("--set", "window.max_above=40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    got = fields("--grow", "--max-above", "40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    got = fields("--max-above", "40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 0.0, [])
+    got = fields()
+    assert (got["above"], got["max_above"], got["grow"]) == (15.0, 60.0, 0.0)
+    out = tmp_path / "refused"
+    proc = sweep_cli(*fake_bisect(base, out), "--set", "window.max_above=40", "--max-above",
+                     "120", env=dict(os.environ))
+    assert proc.returncode == 2 and not out.exists(), proc.stdout + proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith("error: --max-above 120 and window.max_above = 40"), line
+
+
 def stand_in(path: Path, text: str) -> Path:
     path.write_text(text)
     path.chmod(path.stat().st_mode | stat.S_IEXEC)
