@@ -57,9 +57,11 @@ from .sweepbisect import (
     BisectSettings,
     SearchSettings,
     bisect,
+    bisect_estimate,
     bisect_state,
     local_launcher,
     round_points,
+    rounds_left,
     slurm_launcher,
     write_bisect,
 )
@@ -110,10 +112,10 @@ __all__ = [
     "BISECT_COLUMNS", "BISECT_CSV", "BISECT_STATE", "COLUMNS", "MAX_RUNS", "MAX_VALUES",
     "REGIME_COLUMNS", "REGIME_CSV", "RUNS_CSV", "STYLE", "UNSETTLED", "BisectSettings",
     "Bisector", "PlannedRun", "Progress", "SearchSettings", "SweepError", "Verdict",
-    "base_value", "bisect", "bisect_state", "check_plan", "checkpoint_of",
+    "base_value", "bisect", "bisect_estimate", "bisect_state", "check_plan", "checkpoint_of",
     "clock_text", "closing_in", "collect", "default_exe", "first_change",
     "fmt_value", "judge", "local_launcher", "main", "make_plan", "out_of_line", "parse_values",
-    "parser", "point_value", "read_plan", "regime_layout", "round_points",
+    "parser", "point_value", "read_plan", "regime_layout", "round_points", "rounds_left",
     "run_plan", "scene_number", "scene_setting", "search_options",
     "search_fields", "slurm_launcher", "slurm_script", "verdict", "wall_seconds",
     "window_above", "write_bisect", "write_plan", "write_regime",
@@ -240,7 +242,10 @@ def parser() -> argparse.ArgumentParser:
         "--lo, --hi or --tol: only new points run); another base scene or --set list for "
         "the same DIR is refused. Here, after each run a line 'progress: step S: K of N runs "
         "finished, elapsed H:MM:SS, ETA H:MM:SS' (elapsed since the bisection started, ETA "
-        "of step S).")
+        "of step S), and after each round that leaves the bracket wider than --tol an estimate "
+        "of the time the whole bisection has left: 'estimate: about H:MM:SS left for the whole "
+        "bisection: R more rounds narrow [A, B] to --tol T (...)', the rounds that halving (or "
+        "cutting into --jobs + 1 parts) still needs times the mean time of a round so far.")
     bis.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
     bis.add_argument("--key", choices=("gamma", "dh"), required=True,
                      help="pair.gamma (D_1/D_2) or pair.dh (D_h/D_1)")

@@ -5,8 +5,9 @@ shares.
 A Bisector settles points by the rules of postproc/README.md ("Settled patterns"): a run's
 Verdict (dktlbm.sweepcommon), t_end doubled while a 'once' or 'never' is not settled, up to
 max_t_end, and window.above doubled after a window escape, up to max_above (or, with a window
-that grows, each run's window growing up to it). bisect() narrows the bracket and writes
-DIR/bisect.csv and DIR/runs.csv.
+that grows, each run's window growing up to it). bisect() narrows the bracket, writes
+DIR/bisect.csv and DIR/runs.csv, and after each round prints an estimate of the time the whole
+bisection has left (bisect_estimate).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from .sweepcommon import (
     SweepError,
     Verdict,
     base_value,
+    clock_text,
     first_change,
     judge,
     point_value,
@@ -130,6 +132,8 @@ class Bisector:
         self.runs: dict[str, PlannedRun] = {}
         self.rows: list[dict[str, str]] = []
         self.launches = 0
+        self.clock = time.monotonic  # times the rounds (bisect_estimate)
+        self.round_seconds: list[float] = []  # of each round that ran a point
         # the values run before in this directory (an earlier --tol, --lo or --hi): runs.csv
         # keeps them, and those already settled narrow the bracket before any new point runs
         self.earlier: set[float] = set()
@@ -314,14 +318,20 @@ class Bisector:
     def search(self) -> tuple[tuple[float, str], tuple[float, str]]:
         """The bracket (value, pattern) at each end, hi - lo <= tol. With jobs N, each step
         runs up to N points spaced evenly inside the bracket (round_points) and keeps the
-        first sub-interval, from lo, whose ends differ."""
+        first sub-interval, from lo, whose ends differ. After each round that leaves the
+        bracket wider than tol, a line estimates the time the whole bisection has left
+        (bisect_estimate)."""
         c = self.cfg
+        start, launched = self.clock(), self.launches
         first = self.settle([c.lo, c.hi])
+        if self.launches > launched:  # the ends' round: per batch of N runs side by side
+            self.round_seconds.append((self.clock() - start) / math.ceil(2 / self.jobs))
         lo, hi = (c.lo, first[c.lo][0].pattern), (c.hi, first[c.hi][0].pattern)
         if lo[1] == hi[1]:
             raise SweepError(
                 f"{c.key} = {c.lo:.8g} and {c.key} = {c.hi:.8g} give the same pattern, "
                 f"{lo[1]} and {hi[1]}: --lo and --hi must bracket a change of pattern")
+        self._estimate(lo, hi)
         while hi[0] - lo[0] > c.tol * (1 + 1e-9):
             inside = sorted(v for v in self.earlier if lo[0] < v < hi[0])
             self.earlier -= set(inside)  # each earlier point is read once
@@ -336,14 +346,54 @@ class Bisector:
             if not xs:
                 raise SweepError(f"--tol {c.tol:g} is finer than 8 significant digits of "
                                  f"{c.key} resolve")
+            start, launched = self.clock(), self.launches
             lo, hi = first_change(lo, hi, self.settle(xs))
+            if self.launches > launched:
+                self.round_seconds.append(self.clock() - start)
+            self._estimate(lo, hi)
         return lo, hi
+
+    def _estimate(self, lo: tuple[float, str], hi: tuple[float, str]) -> None:
+        line = bisect_estimate(lo[0], hi[0], self.cfg.tol, self.jobs, self.round_seconds)
+        if line is not None:
+            print(line, flush=True)
 
 
 def round_points(width: float, tol: float, jobs: int) -> int:
     """The points a round places evenly inside a bracket `width` wide: up to `jobs`, and no
     more than it needs to reach `tol` (n points cut it into n + 1 equal parts)."""
     return min(jobs, max(1, math.ceil(width / tol - 1e-9) - 1))
+
+
+def rounds_left(width: float, tol: float, jobs: int) -> int:
+    """The rounds that narrow a bracket `width` wide to at most `tol`, up to `jobs` points a
+    round (round_points): each keeps one of the parts its points cut the bracket into."""
+    rounds = 0
+    while width > tol * (1 + 1e-9):
+        width /= round_points(width, tol, jobs) + 1
+        rounds += 1
+    return rounds
+
+
+def bisect_estimate(lo: float, hi: float, tol: float, jobs: int,
+                    seconds: list[float]) -> str | None:
+    """The line that estimates how long the whole bisection still takes, after a round that
+    left the bracket [lo, hi]: the rounds left (rounds_left) times the mean time of a round so
+    far (`seconds`, one per round that ran a point; the ends' round counted per batch of
+    `jobs` runs side by side). None once the bracket is at most `tol` wide. An estimate: a
+    point that must run again with a later t_end or a taller window takes longer."""
+    rounds = rounds_left(hi - lo, tol, jobs)
+    if rounds == 0:
+        return None
+    points = round_points(hi - lo, tol, jobs)
+    what = (f"{rounds} more round{'s' if rounds != 1 else ''} narrow [{lo:.8g}, {hi:.8g}] to "
+            f"--tol {tol:g} ({points} point{'s' if points != 1 else ''} in the next)")
+    if not seconds:
+        return f"estimate: {what}; the time of a round is not known yet"
+    mean = sum(seconds) / len(seconds)
+    return (f"estimate: about {clock_text(mean * rounds)} left for the whole bisection: "
+            f"{what}, at {clock_text(mean)} a round so far (more if a point must run again "
+            f"with a later t_end or a taller window)")
 
 
 def bisect_state(cfg: SearchSettings, state: str = BISECT_STATE,
