@@ -99,9 +99,11 @@ from .sweepplan import (
     check_plan,
     checkpoint_of,
     collect,
+    collect_summary,
     make_plan,
     parse_values,
     regime_layout,
+    rerun_plans,
     run_plan,
     slurm_script,
     write_regime,
@@ -113,11 +115,11 @@ __all__ = [
     "REGIME_COLUMNS", "REGIME_CSV", "RUNS_CSV", "STYLE", "UNSETTLED", "BisectSettings",
     "Bisector", "PlannedRun", "Progress", "SearchSettings", "SweepError", "Verdict",
     "base_value", "bisect", "bisect_estimate", "bisect_state", "check_plan", "checkpoint_of",
-    "clock_text", "closing_in", "collect", "default_exe", "first_change",
+    "clock_text", "closing_in", "collect", "collect_summary", "default_exe", "first_change",
     "fmt_value", "judge", "local_launcher", "main", "make_plan", "out_of_line", "parse_values",
-    "parser", "point_value", "read_plan", "regime_layout", "round_points", "rounds_left",
-    "run_plan", "scene_number", "scene_setting", "search_options",
-    "search_fields", "slurm_launcher", "slurm_script", "verdict", "wall_seconds",
+    "parser", "point_value", "read_plan", "regime_layout", "rerun_plans", "round_points",
+    "rounds_left", "run_plan", "scene_number", "scene_setting", "search_fields",
+    "search_options", "slurm_launcher", "slurm_script", "verdict", "wall_seconds",
     "window_above", "write_bisect", "write_plan", "write_regime",
 ]
 
@@ -214,7 +216,13 @@ def parser() -> argparse.ArgumentParser:
         "collect", help="write DIR/regime.csv and the regime map DIR/regime.png",
         description="Read each planned run's DKT pattern into DIR/regime.csv (gamma, dh, "
         "pattern, episodes, first_kiss_t, dir; pattern missing or failed without a finished "
-        "run file) and draw DIR/regime.png: D_h/D_1 across, gamma up, one marker per pattern.")
+        "run file) and draw DIR/regime.png: D_h/D_1 across, gamma up, one marker per pattern. "
+        "Then it says how many runs are settled, unsettled (their pattern may still change: "
+        "postproc/README.md, 'Settled patterns') or without a pattern, names the runs that "
+        "stopped before their t_end (window_escape or another stop reason), and what to do "
+        "next: the dkt-sweep plan, run and collect commands that run the unsettled runs again "
+        "with run.t_end doubled, or in a window that grows (window.max_above) when a particle "
+        "left the window, and `dkt-sweep run` for runs not run to their end.")
     with_out(coll)
     coll.add_argument("--with", dest="also", action="append", default=[], type=Path,
                       metavar="DIR2", help="also the runs of this sweep or bisection directory "
@@ -421,6 +429,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     for r in rows:
         counts[r["pattern"]] = counts.get(r["pattern"], 0) + 1
     print(", ".join(f"{k}: {v}" for k, v in sorted(counts.items())))
+    print("\n".join(collect_summary(plan, rows, out)))
     return 0
 
 

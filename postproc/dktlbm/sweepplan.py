@@ -3,8 +3,8 @@
 `plan` writes DIR/runs.csv, one run of the base scene per combination of the values of
 pair.gamma and pair.dh (make_plan, write_plan); `run` runs them here, N at a time (run_plan),
 and `slurm` writes DIR/sweep.slurm, a job array of them (slurm_script); `collect` reads each
-run's pattern and whether it is settled into DIR/regime.csv and draws DIR/regime.png
-(collect, write_regime).
+run's pattern and whether it is settled into DIR/regime.csv, draws DIR/regime.png and says
+what the runs still need (collect, write_regime, collect_summary).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import concurrent.futures
 import csv
 import math
+import os
 import shlex
 import subprocess
 import sys
@@ -22,14 +23,18 @@ from pathlib import Path
 from . import launch as mpi
 from .read import run_status
 from .sweepcommon import (
+    STOPPED_CLEANLY,
     STYLE,
     PlannedRun,
     SweepError,
     Verdict,
     base_value,
     clock_text,
+    default_exe,
     fmt_value,
+    scene_number,
     verdict,
+    window_above,
 )
 
 REGIME_CSV = "regime.csv"
@@ -353,8 +358,137 @@ def collect(plan: list[PlannedRun]) -> list[dict[str, str]]:
             # for the map only (not a regime.csv column): how far the run got, in t*
             "end_tstar": (f"{v.end_t / v.t_ref:.6g}"
                           if v.classified and math.isfinite(v.end_t / v.t_ref) else ""),
+            "why": v.why,  # for collect_summary only
         })
     return rows
+
+
+def collect_summary(plan: list[PlannedRun], rows: list[dict[str, str]],
+                    out: Path) -> list[str]:
+    """What `collect` says after the table (`rows`, one per run of `plan`, from collect; `out`
+    the sweep directory as the user named it): how many runs are settled, unsettled or
+    without a pattern, the runs that stopped before their t_end, and what to do next:
+
+    - unsettled runs that finished: plan them again with run.t_end doubled (rerun_plans);
+    - unsettled runs that left the window: plan them again in a window that grows
+      (window.max_above: twice the runs' own limit, else 4 times window.above);
+    - runs without a file, still running or stopped cleanly: `dkt-sweep run` runs or resumes
+      them; runs that failed: their run.log."""
+    settled = [k for k, row in enumerate(rows) if row["settled"] == "yes"]
+    unsettled = [k for k, row in enumerate(rows) if row["settled"] == "no"]
+    none = [k for k, row in enumerate(rows) if row["settled"] == ""]
+    kinds = _count(rows[k]["pattern"] for k in none)
+    lines = [f"{len(rows)} run{'s' if len(rows) != 1 else ''}: {len(settled)} settled, "
+             f"{len(unsettled)} unsettled, {len(none)} without a pattern"
+             + (f" ({kinds})" if kinds else "")]
+    early = [k for k, row in enumerate(rows)
+             if row["status"] not in ("finished", "missing", "running")]
+    if early:
+        lines.append(f"{len(early)} stopped before t_end: " + ", ".join(
+            f"{plan[k].id} ({rows[k]['status']})" for k in early))
+    later = [k for k in unsettled if rows[k]["status"] == "finished"]
+    if later:
+        t_end = 2 * max(float(rows[k]["t_end"]) for k in later)
+        lines.append(
+            f"{_runs(len(later))} unsettled: the pattern may still change after t_end "
+            f"(postproc/README.md, 'Settled patterns'); rerun with a later run.t_end:")
+        lines += rerun_plans([plan[k] for k in later], f"run.t_end={t_end:g}",
+                             Path(f"{out}_t{t_end:g}"), out)
+    escaped = [k for k in unsettled if rows[k]["status"] == "window_escape"]
+    if escaped:
+        limit = max(_window_limit(plan[k]) for k in escaped)
+        lines.append(
+            f"{_runs(len(escaped))} unsettled after a particle left the window: rerun in a "
+            f"window that grows up to {limit:g} D_1 (window.max_above, docs/model.md section 5):")
+        lines += rerun_plans([plan[k] for k in escaped], f"window.max_above={limit:g}",
+                             Path(f"{out}_a{limit:g}"), out)
+    waiting = [k for k in none + unsettled
+               if rows[k]["pattern"] in ("missing", "paused", "stopped")
+               or rows[k]["status"] in STOPPED_CLEANLY]
+    if waiting:
+        lines.append(f"{_runs(len(waiting))} not run to its end yet: `dkt-sweep run --out "
+                     f"{out}` runs {'them' if len(waiting) > 1 else 'it'} (a paused or "
+                     f"stopped run resumes from its checkpoint)")
+    failed = [k for k in none if rows[k]["pattern"] == "failed"]
+    for k in failed:
+        lines.append(f"run {plan[k].id} failed ({rows[k]['status']}: {rows[k]['why']}); "
+                     f"see {plan[k].dir / 'run.log'}")
+    return lines
+
+
+def _count(names) -> str:
+    """'failed: 1, missing: 2' for the names given."""
+    counts: dict[str, int] = {}
+    for name in names:
+        counts[name] = counts.get(name, 0) + 1
+    return ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+
+
+def _runs(n: int) -> str:
+    return f"{n} run{'s' if n != 1 else ''}"
+
+
+def _window_limit(r: PlannedRun) -> float:
+    """The window.max_above to rerun the run `r` with after it left its window: twice its own
+    limit when its window grew, else 4 times its window.above (the program's default when
+    neither its --set options nor its scene give them)."""
+    base, sets = Path(r.args[1]), _sets_of(r)
+    grown = scene_number(base, sets, "window.max_above")[0]
+    if grown is not None and grown > 0:
+        return 2 * grown
+    above, text = window_above(base, sets)
+    if above is None:  # the run could not have started with it
+        raise SweepError(f"run {r.id}: window.above = {text!r} is not a number")
+    return 4 * above
+
+
+def _sets_of(r: PlannedRun) -> list[str]:
+    """The run's --set options, in order."""
+    args = r.args
+    return [v for flag, v in zip(args, args[1:], strict=False) if flag == "--set"]
+
+
+def rerun_plans(runs: list[PlannedRun], change: str, new: Path, out: Path) -> list[str]:
+    """The commands that run `runs` again with the --set `change` (group.key=value) into the
+    sweep directory `new` and collect them with the sweep `out`: a `dkt-sweep plan` of the
+    runs' scene and --set options (but pair.gamma, pair.dh, output.dir and the changed key)
+    with --gamma and --dh lists that give exactly those runs; when one plan cannot (runs with
+    other options, or not a full grid: then one plan per gamma), plans into new_1, new_2, ...
+    Then `dkt-sweep run` of each, and one `dkt-sweep collect`."""
+    key = change.partition("=")[0]
+    groups: dict[tuple[str, ...], list[PlannedRun]] = {}
+    for r in runs:
+        kept = [s for s in _sets_of(r) if s.partition("=")[0].strip().lower()
+                not in ("pair.gamma", "pair.dh", "output.dir", key)]
+        groups.setdefault((r.args[0], r.args[1], *kept), []).append(r)
+    plans: list[list[str]] = []  # the words of each plan but --out
+    for (exe, base, *kept), members in groups.items():
+        points = {(r.gamma, r.dh) for r in members}
+        gammas = sorted({g for g, _ in points}, key=lambda g: -1.0 if g is None else g)
+        dhs = sorted({h for _, h in points}, key=lambda h: -1.0 if h is None else h)
+        grid = len(points) == len(gammas) * len(dhs)
+        for lists in ([(gammas, dhs)] if grid else
+                      [([g], sorted(h for g2, h in points if g2 == g)) for g in gammas]):
+            words = ["dkt-sweep", "plan", _shown(base)]
+            for flag, values in zip(("--gamma", "--dh"), lists, strict=True):
+                if None not in values:
+                    words += [flag, ",".join(fmt_value(v) for v in values)]
+            for s in [*kept, change]:
+                words += ["--set", s]
+            plans.append(words + (["--exe", exe] if exe != default_exe() else []))
+    dirs = [new] if len(plans) == 1 else [Path(f"{new}_{k}") for k in range(1, len(plans) + 1)]
+    lines = [f"  {shlex.join([*words, '--out', str(d)])}" for words, d in zip(plans, dirs,
+                                                                               strict=True)]
+    lines += [f"  dkt-sweep run --out {shlex.quote(str(d))} --jobs N" for d in dirs]
+    lines.append("  dkt-sweep collect --out " + shlex.join(
+        [str(out), *(w for d in dirs for w in ("--with", str(d)))]))
+    return lines
+
+
+def _shown(path: str) -> str:
+    """`path` relative to the working directory when it lies below it."""
+    rel = os.path.relpath(path)
+    return path if rel.startswith("..") else rel
 
 
 def _settling_columns(v: Verdict, pattern: str) -> dict[str, str]:
