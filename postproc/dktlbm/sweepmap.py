@@ -8,7 +8,7 @@ included), and wherever two neighbouring grid points (along x or along y) have d
 settled patterns, bisects along that grid edge to the key's tolerance: the bracket [lo, hi]
 of the edge's first change of pattern from its lower end, then the rest of the edge when the
 pattern at hi is not the one at its upper end (so an edge across three patterns gives two
-border points). Every point is settled by the rules of `dkt-sweep bisect` (sweep.Bisector:
+border points). Every point is settled by the rules of `dkt-sweep bisect` (sweepbisect.Bisector:
 t_end doubled up to --max-t-end while 'once' or 'never' is not settled, window.above doubled
 up to --max-above after a window escape, --kiss), and each step runs the new points of all
 edges together: up to --jobs at a time here (each edge gets --jobs / edges points a step, at
@@ -36,29 +36,20 @@ paper's 1-D cuts).
 
 from __future__ import annotations
 
-import argparse
 import csv
-import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .sweep import (
-    RUNS_CSV,
+from .sweepbisect import Bisector, Scene, SearchSettings, bisect_state, round_points
+from .sweepcommon import (
     STYLE,
     UNSETTLED,
-    Bisector,
     PlannedRun,
     SweepError,
     Verdict,
-    _first_change,
-    _value,
-    bisect_state,
-    default_exe,
-    growth,
-    search_launcher,
-    search_options,
-    settling_limits,
+    first_change,
+    point_value,
     write_plan,
 )
 
@@ -91,34 +82,26 @@ class Axis:
     def grid(self) -> list[float]:
         """The grid values, ends included, as the runs see them (8 significant digits)."""
         step = (self.hi - self.lo) / (self.points - 1)
-        return [_value(self.lo + k * step) for k in range(self.points)]
+        return [point_value(self.lo + k * step) for k in range(self.points)]
 
 
 @dataclass
-class MapSettings:
-    """What a map runs. The fields a Bisector reads have the names of BisectSettings'."""
+class Plane(Scene):
+    """The points of a map: (x, y), pair.<x.key> and pair.<y.key>."""
 
-    base: Path
     x: Axis
     y: Axis
-    sets: list[str]
-    out: Path
-    exe: str
-    t_end: float  # s, the runs' first end time
-    max_t_end: float  # s
-    above: float  # D_1, the runs' first window.above
-    max_above: float  # D_1
-    kiss: bool = False
+
+
+@dataclass
+class MapSettings(SearchSettings, Plane):
+    """What a map runs: base, x, y, then SearchSettings' fields, then these."""
+
     cuts: list[tuple[str, float]] = field(default_factory=list)  # ('x' or 'y', value) to draw
-    grow: float = 0.0  # D_1, the runs' window.max_above: their windows grow up to it; 0 = never
     keep_going: bool = False  # a point not settled within the limits is UNSETTLED, not an error
 
-    def identity(self) -> dict[str, object]:
-        """What a rerun in the same directory must repeat to reuse its runs: the base scene,
-        the two keys and the --set options (not the ranges, grid sizes or tolerances)."""
-        return {"base": str(self.base),
-                "base_sha256": hashlib.sha256(self.base.read_bytes()).hexdigest(),
-                "x": self.x.key, "y": self.y.key, "sets": self.sets}
+    def keys(self) -> dict[str, object]:
+        return {"x": self.x.key, "y": self.y.key}
 
 
 class MapBisector(Bisector):
@@ -262,7 +245,7 @@ class MapSearch:
         for e in edges:
             mine = {t: got[e.point(t)] for t in inside[id(e)] if e.point(t) in got}
             stuck = sorted(t for t, (v, _) in mine.items() if v.pattern == UNSETTLED)
-            e.lo, e.hi = _first_change(e.lo, e.hi, {t: a for t, a in mine.items()
+            e.lo, e.hi = first_change(e.lo, e.hi, {t: a for t, a in mine.items()
                                                     if t not in stuck})
             stuck = [t for t in stuck if e.lo[0] < t < e.hi[0]]
             going += self._narrowed(e, stuck)
@@ -277,8 +260,8 @@ class MapSearch:
         """Up to --jobs / edges (at least one) points evenly inside e's bracket, no more than
         it needs to reach the tolerance."""
         width, tol = e.width(), self.tol(e)
-        n = min(max(1, self.m.jobs // edges), max(1, math.ceil(width / tol - 1e-9) - 1))
-        ts = sorted({_value(e.lo[0] + k * width / (n + 1)) for k in range(1, n + 1)}
+        n = round_points(width, tol, max(1, self.m.jobs // edges))
+        ts = sorted({point_value(e.lo[0] + k * width / (n + 1)) for k in range(1, n + 1)}
                     - {e.lo[0], e.hi[0]})
         if not ts:
             key = (self.cfg.x if e.along == 0 else self.cfg.y).key
@@ -481,80 +464,3 @@ def map_points(m: MapBisector) -> tuple[dict[Point, str], dict[Point, str]]:
 
 def _class(pattern: str, kiss: bool) -> str:
     return "kisses" if kiss and pattern in ("once", "repeated") else pattern
-
-
-# ---------------------------------------------------------------- command line
-
-
-def _range_arg(text: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in text.split(":"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not A:B") from None
-    if not (0 < lo < hi and math.isfinite(hi)):
-        raise argparse.ArgumentTypeError(f"{text!r}: need 0 < A < B")
-    return _value(lo), _value(hi)
-
-
-def _cut_arg(text: str) -> tuple[str, float]:
-    axis, eq, value = text.partition("=")
-    try:
-        number = float(value)
-    except ValueError:
-        number = math.nan
-    if axis not in ("x", "y") or not eq or not math.isfinite(number):
-        raise argparse.ArgumentTypeError(f"{text!r} is not x=VALUE or y=VALUE")
-    return axis, number
-
-
-def add_parser(sub, with_out) -> None:
-    """`dkt-sweep map` in the subcommands `sub` of dkt-sweep (with_out adds --out)."""
-    q = sub.add_parser(
-        "map", help="trace the borders between DKT patterns across gamma and dh",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    q.add_argument("base", type=Path, metavar="BASE.nml", help="the base scene (namelist)")
-    for a in ("x", "y"):
-        q.add_argument(f"--{a}", choices=KEYS, required=True,
-                       help=f"the key {'across' if a == 'x' else 'up'}: pair.gamma or pair.dh")
-        q.add_argument(f"--{a}-range", type=_range_arg, required=True, metavar="A:B",
-                       help="its range, ends included")
-        q.add_argument(f"--{a}-points", type=int, default=5, metavar="N",
-                       help="grid values along it, ends included (default 5)")
-        q.add_argument(f"--{a}-tol", type=float, required=True, metavar="T",
-                       help="bisect each edge along it to a bracket at most T wide")
-    q.add_argument("--cut", action="append", default=[], type=_cut_arg, metavar="x=V|y=V",
-                   help="draw the line x = V or y = V on map.png (repeatable), e.g. a 1-D "
-                   "search's line")
-    q.add_argument("--pdf", action="store_true", help="also write DIR/map.pdf")
-    q.add_argument("--keep-going", action="store_true",
-                   help="a point not settled within --max-t-end and --max-above is marked "
-                   "unsettled and the map goes on around it (default: the map stops there)")
-    search_options(q, "runs at the same time (default 1); each step gives every edge "
-                   "N / edges points, at least one")
-    with_out(q)
-
-
-def map_command(args: argparse.Namespace) -> int:
-    if not args.base.is_file():
-        raise SweepError(f"{args.base}: no such scene file")
-    if args.x == args.y:
-        raise SweepError(f"--x and --y are both {args.x}: a map needs two keys")
-    axes = []
-    for a in ("x", "y"):
-        (lo, hi), n, tol = getattr(args, f"{a}_range"), getattr(args, f"{a}_points"), \
-            getattr(args, f"{a}_tol")
-        if n < 2 or not (math.isfinite(tol) and tol > 0):
-            raise SweepError(f"--{a}-points must be at least 2 and --{a}-tol positive "
-                             f"(got {n}, {tol:g})")
-        axes.append(Axis(getattr(args, a), lo, hi, n, tol))
-    base = args.base.resolve()
-    limits = settling_limits(args, base)
-    sets, grow = growth(args, base, limits[3])
-    cfg = MapSettings(base, axes[0], axes[1], sets, args.out.resolve(),
-                      args.exe or default_exe(), *limits, args.kiss, list(args.cut), grow,
-                      args.keep_going)
-    _, _, summary = trace_map(cfg, args.jobs, search_launcher(args, cfg.out), args.pdf)
-    print(f"wrote {', '.join(str(cfg.out / f) for f in (MAP_CSV, BORDERS_CSV, MAP_PNG))}, "
-          f"{cfg.out / RUNS_CSV}")
-    print(summary)
-    return 0

@@ -160,6 +160,42 @@ def bracket(summary: str) -> tuple[float, float]:
     return float(match[1]), float(match[2])
 
 
+def test_the_estimate_counts_the_rounds_left_and_times_them() -> None:
+    """The estimate of the whole bisection: the rounds left are those a bracket needs at up
+    to --jobs points a round (as expected_points counts them: 7 from width 1 to 0.01 with 1
+    job, 5 with 2, none once within --tol), times the mean time of a round so far (60 and
+    120 s: 7 x 90 s = 0:10:30); before any round has run a point the time is not known, and a
+    narrowed bracket gives no line."""
+    assert sweep.rounds_left(1.0, 0.01, 1) == len(expected_points(1.0, 0.01, 1)) == 7
+    assert sweep.rounds_left(1.0, 0.01, 2) == len(expected_points(1.0, 0.01, 2)) == 5
+    assert sweep.rounds_left(0.01, 0.01, 3) == 0
+    line = sweep.bisect_estimate(1.0, 2.0, 0.01, 1, [60.0, 120.0])
+    assert line is not None and line.startswith(
+        "estimate: about 0:10:30 left for the whole bisection: 7 more rounds narrow [1, 2] "
+        "to --tol 0.01 (1 point in the next), at 0:01:30 a round so far"), line
+    assert sweep.bisect_estimate(1.0, 2.0, 0.01, 2, []) == (
+        "estimate: 5 more rounds narrow [1, 2] to --tol 0.01 (2 points in the next); the time "
+        "of a round is not known yet")
+    assert sweep.bisect_estimate(1.0, 1.01, 0.01, 1, [60.0]) is None
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_bisect_prints_an_estimate_for_the_whole_bisection_after_each_round(
+    tmp_path: Path, base: Path, jobs: int, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """After the ends' round and after each round that leaves the bracket wider than --tol,
+    the search prints one estimate line of the time the whole bisection has left, its count
+    of rounds going down by one a round to 1 (none after the last round), the first from the
+    ends' round's own time."""
+    sweep.bisect(settings(base, tmp_path / "b"), jobs, FakeLaunch())
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("estimate:")]
+    counts = [int(re.search(r"(\d+) more rounds? narrow", ln).group(1)) for ln in lines]
+    rounds = len(expected_points(1.0, 0.01, jobs))
+    assert counts == list(range(rounds, 0, -1)), lines
+    assert all(re.match(r"estimate: about \d+:\d\d:\d\d left for the whole bisection", ln)
+               for ln in lines), lines
+
+
 def test_rerun_reuses_runs_narrows_and_refuses_other_settings(tmp_path: Path, base: Path) -> None:
     """The same bisection again in the same directory runs nothing and gives the same bracket.
     A tighter --tol (here also with one point a step instead of two) first narrows with the
@@ -253,6 +289,34 @@ def test_grow_option_puts_the_limit_into_every_run(tmp_path: Path, base: Path) -
             args = shlex.split(r["command"])
             assert args.count("window.max_above=60") == 1, args
             assert not any(a.startswith("window.above=") for a in args), args
+
+
+def test_max_above_means_what_window_max_above_means(tmp_path: Path, base: Path) -> None:
+    """--max-above is the longest the window may be above the lowest particle's centre, the
+    meaning of the key window.max_above: runs that set window.max_above = 40 (a --set) search
+    up to 40 D_1 without --max-above (not 4 x window.above = 60) and grow up to it; --grow
+    --max-above 40 adds window.max_above=40 to the runs; without either the limit is
+    4 x window.above and the windows do not grow. --max-above with a different
+    window.max_above is refused with one error line naming both, exit 2 (before any run)."""
+    def fields(*extra: str) -> dict[str, object]:
+        args = sweep.parser().parse_args([str(x) for x in fake_bisect(base, tmp_path / "o")]
+                                         + list(extra))
+        return sweep.search_fields(args, base)
+
+    got = fields("--set", "window.max_above=40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    got = fields("--grow", "--max-above", "40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    got = fields("--max-above", "40")
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 0.0, [])
+    got = fields()
+    assert (got["above"], got["max_above"], got["grow"]) == (15.0, 60.0, 0.0)
+    out = tmp_path / "refused"
+    proc = sweep_cli(*fake_bisect(base, out), "--set", "window.max_above=40", "--max-above",
+                     "120", env=dict(os.environ))
+    assert proc.returncode == 2 and not out.exists(), proc.stdout + proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith("error: --max-above 120 and window.max_above = 40"), line
 
 
 def stand_in(path: Path, text: str) -> Path:

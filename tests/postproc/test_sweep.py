@@ -16,6 +16,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
 import synthetic as syn
 
@@ -265,6 +267,80 @@ def test_collect_writes_the_regime_table_and_map(tmp_path: Path, base: Path) -> 
         == [("1.5", "3", "never", "sw2")]
     proc = sweep_cli("collect", "--out", out, "--with", tmp_path / "nothing")
     assert proc.returncode == 2 and "nothing" in proc.stderr
+
+
+def set_stop_reason(h5: Path, reason: str) -> None:
+    """Write /run stop_reason into a synthetic run file (as the program ends a run)."""
+    with h5py.File(h5, "a") as f:
+        f["run"].attrs["stop_reason"] = np.bytes_(reason.encode())
+
+
+def test_collect_counts_settled_unsettled_and_escapes_and_says_what_next(
+        tmp_path: Path, base: Path) -> None:
+    """collect's summary after the table, for a 3 x 2 plan (--set run.t_end=3 --set
+    window.above=15) of: a settled 'repeated', a settled 'once' in line, a 'once' out of line
+    at its end (finished, unsettled), a 'once' whose particle left the window (unsettled), a
+    run a guard stopped, and a run never started. It counts 2 settled, 2 unsettled and 2
+    without a pattern (failed: 1, missing: 1); names the two runs that stopped before t_end
+    with their stop reasons; gives the `dkt-sweep plan` command that plans the finished
+    unsettled run again with run.t_end doubled (its own --set options kept, its gamma and dh
+    only) into DIR_t6, and the one that plans the escaped run in a window that grows up to 4 x
+    15 = 60 D_1 into DIR_a60, each followed by `dkt-sweep run` and `collect --with`; says that
+    `dkt-sweep run` runs the missing run and names the failed run's run.log. Each printed plan
+    command, run, plans exactly its run with the changed setting. Runs that are not a full
+    grid get one plan per gamma; a sweep whose runs are all settled says so and asks for
+    nothing."""
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "1:3:1", "--dh", "2,4", "--set", "run.t_end=3",
+                     "--set", "window.above=15", "--no-check", "--out", out).returncode == 0
+    plan = sweep.read_plan(out)
+    k = syn.SHAPES
+    syn.write_run(plan[0].h5, k["repeated"], fields=False)
+    syn.write_run(plan[1].h5, k["once"], fields=False)
+    syn.write_run(plan[2].h5, k["once"], fields=False, across=0.3)
+    syn.write_run(plan[3].h5, k["once"], fields=False)
+    set_stop_reason(plan[3].h5, "window_escape")
+    syn.write_run(plan[4].h5, k["repeated"], fields=False, finished=False)
+    set_stop_reason(plan[4].h5, "guard: overlap")
+    # plan[5]: never run
+    proc = sweep_cli("collect", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert "6 runs: 2 settled, 2 unsettled, 2 without a pattern (failed: 1, missing: 1)" in lines
+    assert "2 stopped before t_end: g2_h4 (window_escape), g3_h2 (guard: overlap)" in lines
+    later = f"{out}_t6"
+    grown = f"{out}_a60"
+    plans = [ln.strip() for ln in lines if ln.startswith("  dkt-sweep plan ")]
+    assert plans == [
+        f"dkt-sweep plan {base} --gamma 2 --dh 2 --set window.above=15 --set run.t_end=6 "
+        f"--out {later}",
+        f"dkt-sweep plan {base} --gamma 2 --dh 4 --set run.t_end=3 --set window.above=15 "
+        f"--set window.max_above=60 --out {grown}"], lines
+    for new in (later, grown):
+        assert f"  dkt-sweep run --out {new} --jobs N" in lines
+        assert f"  dkt-sweep collect --out {out} --with {new}" in lines
+    assert any(ln.startswith(f"1 run not run to its end yet: `dkt-sweep run --out {out}`")
+               for ln in lines), lines
+    assert any(ln.startswith("run g3_h2 failed (guard: overlap")
+               and ln.endswith(f"see {out / 'g3_h2' / 'run.log'}") for ln in lines), lines
+    for command, change in zip(plans, ("run.t_end=6", "window.max_above=60"), strict=True):
+        words = shlex.split(command)[1:]
+        assert sweep_cli(*words, "--no-check").returncode == 0
+        (row,) = read_csv(Path(words[-1]) / "runs.csv")
+        assert change in shlex.split(row["command"])
+    # runs that are not a full grid: one plan per gamma, each into its own directory
+    text = sweep.rerun_plans([plan[0], plan[3]], "run.t_end=6", tmp_path / "re", out)
+    assert [ln.split(" --out ")[-1] for ln in text if "dkt-sweep plan" in ln] == [
+        str(tmp_path / "re_1"), str(tmp_path / "re_2")]
+    assert ["--gamma 1 --dh 2" in text[0], "--gamma 2 --dh 4" in text[1]] == [True, True]
+    # every run settled: nothing to do next
+    done = tmp_path / "done"
+    assert sweep_cli("plan", base, "--gamma", "1", "--dh", "2", "--no-check", "--out",
+                     done).returncode == 0
+    syn.write_run(sweep.read_plan(done)[0].h5, k["repeated"], fields=False)
+    proc = sweep_cli("collect", "--out", done)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1] == "1 run: 1 settled, 0 unsettled, 0 without a pattern"
 
 
 UHLMANN_SETS = ["lbm.dx=0.025", "lbm.tau=0.52", "run.t_end=0.05",
