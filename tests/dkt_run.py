@@ -25,9 +25,7 @@ mpi_env = launch.mpi_env
 
 def dkt_command(name: str) -> list[str]:
     """The command dkt-<name> as its console script starts it (dktlbm.<name>:main), the package
-    found through PYTHONPATH (ctest: <root>/postproc). Not `python3 -m dktlbm.<name>`: under
-    it dktlbm.sweep runs as __main__ and is imported a second time by dktlbm.sweepmap, whose
-    errors then escape the handler that gives them exit status 2."""
+    found through PYTHONPATH (ctest: <root>/postproc)."""
     return [sys.executable, "-c", f"import sys; from dktlbm.{name} import main; sys.exit(main())"]
 
 
