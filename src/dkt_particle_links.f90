@@ -25,7 +25,8 @@ module dkt_particle_links
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_box
-  use dkt_particles, only: particles_t, particle_t, inner_link_t
+  use dkt_particles, only: particles_t, inner_link_t
+  use dkt_particle_state, only: particle_state_t
   implicit none
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
@@ -36,33 +37,36 @@ module dkt_particle_links
 
 contains
 
-  !> The rigid-body velocity U + Omega x (x - X) of particle p at the point (px, py).
-  pure subroutine surface_velocity(p, px, py, ux, uy)
-    type(particle_t), intent(in) :: p
+  !> The rigid-body velocity U + Omega x (x - X) of particle k of s at the point (px, py).
+  pure subroutine surface_velocity(s, k, px, py, ux, uy)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
     real(wp), intent(in) :: px, py
     real(wp), intent(out) :: ux, uy
-    ux = p%u - p%omega*(py - p%y)
-    uy = p%v + p%omega*(px - p%x)
+    ux = s%u(k) - s%omega(k)*(py - s%y(k))
+    uy = s%v(k) + s%omega(k)*(px - s%x(k))
   end subroutine surface_velocity
 
-  !> Whether the point (px, py) lies strictly inside particle k.
-  pure logical function inside(p, px, py)
-    type(particle_t), intent(in) :: p
+  !> Whether the point (px, py) lies strictly inside particle k of s.
+  pure logical function inside(s, k, px, py)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
     real(wp), intent(in) :: px, py
-    inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
+    inside = (px - s%x(k))**2 + (py - s%y(k))**2 < s%r(k)**2
   end function inside
 
-  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle p, along
-  !! e_d that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
-  pure real(wp) function link_fraction(p, px, py, d) result(q)
-    type(particle_t), intent(in) :: p
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle k of s,
+  !! along e_d that lies outside it: |x + t e - X|^2 = r^2, the smaller root.
+  pure real(wp) function link_fraction(s, k, px, py, d) result(q)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
     real(wp), intent(in) :: px, py
     integer, intent(in) :: d
     real(wp) :: dxp, dyp, b, c, t
-    dxp = px - p%x
-    dyp = py - p%y
+    dxp = px - s%x(k)
+    dyp = py - s%y(k)
     b = dxp*ex(d) + dyp*ey(d)
-    c = dxp*dxp + dyp*dyp - p%r*p%r
+    c = dxp*dxp + dyp*dyp - s%r(k)*s%r(k)
     ! |e_d|^2 is 1 or 2: the division by it is the exact product with 1 or 1/2
     t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))*inv_e2(d)
     q = min(max(t, 1.0e-6_wp), 1.0_wp)
@@ -71,14 +75,14 @@ contains
   !> The wall point x_w = x_f + q e_d of the link from node (i, jg) (global row) along e_d, the
   !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
   !! the population bounced back towards x_f. The interior side of the same link receives -W.
-  pure subroutine wall_of_link(p, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
-    type(particle_t), intent(in) :: p
-    integer, intent(in) :: i, jg, d
+  pure subroutine wall_of_link(s, k, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
+    type(particle_state_t), intent(in) :: s !! the disks; the link is of disk k
+    integer, intent(in) :: k, i, jg, d
     real(wp), intent(in) :: q, rho
     real(wp), intent(out) :: xw, yw, uwx, uwy, wall
     xw = i - 0.5_wp + q*ex(d)
     yw = jg - 0.5_wp + q*ey(d)
-    call surface_velocity(p, xw, yw, uwx, uwy)
+    call surface_velocity(s, k, xw, yw, uwx, uwy)
     wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
   end subroutine wall_of_link
 
@@ -126,7 +130,7 @@ contains
     py = jg - 0.5_wp
     call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
-      fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
+      fluid = .not. any([(inside(ps%p, k, px, py), k=1, ps%n)])
       return
     end if
     fluid = .true.
@@ -134,11 +138,11 @@ contains
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
-          if (inside(ps%p(c%items(l)), px, py)) fluid = .false.
+          if (inside(ps%p, c%items(l), px, py)) fluid = .false.
         end do
       end do
       do l = 1, size(c%stray)
-        if (inside(ps%p(c%stray(l)), px, py)) fluid = .false.
+        if (inside(ps%p, c%stray(l), px, py)) fluid = .false.
       end do
     end associate
   end function fluid_far
@@ -163,9 +167,9 @@ contains
       ps%nplaced = -1
     end if
     if (ps%nplaced == ps%n .and. ps%placed_y0 == dom%y0) then
-      if (all(ps%placed(1, 1:ps%n) == ps%p(1:ps%n)%x .and. &
-              ps%placed(2, 1:ps%n) == ps%p(1:ps%n)%y .and. &
-              ps%placed(3, 1:ps%n) == ps%p(1:ps%n)%r)) return
+      if (all(ps%placed(1, 1:ps%n) == ps%p%x(1:ps%n) .and. &
+              ps%placed(2, 1:ps%n) == ps%p%y(1:ps%n) .and. &
+              ps%placed(3, 1:ps%n) == ps%p%r(1:ps%n))) return
     end if
     if (ps%nplaced < 0 .or. ps%placed_y0 /= dom%y0) then
       ps%solid = .false.
@@ -175,19 +179,19 @@ contains
         ps%solid(i1:i2, j1:j2) = .false.
       end do
     end if
-    call cells_build(ps%ncells, ps%p(1:ps%n)%x, ps%p(1:ps%n)%y, 2.0_wp*ps%rmax)
+    call cells_build(ps%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
     if (allocated(ps%placed)) then
       if (size(ps%placed, 2) < ps%n) deallocate (ps%placed)
     end if
     if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        ps%placed(:, k) = [p%x, p%y, p%r]
-        call mask_box(p%x, p%y, p%r, dom, i1, i2, j1, j2)
+      associate (p => ps%p)
+        ps%placed(:, k) = [p%x(k), p%y(k), p%r(k)]
+        call mask_box(p%x(k), p%y(k), p%r(k), dom, i1, i2, j1, j2)
         do j = j1, j2
           py = dom%y0 + j - 0.5_wp
           do i = i1, i2
-            if (inside(p, i - 0.5_wp, py)) ps%solid(i, j) = .true.
+            if (inside(p, k, i - 0.5_wp, py)) ps%solid(i, j) = .true.
           end do
         end do
       end associate
@@ -231,24 +235,24 @@ contains
       call resize(cap)
     end if
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        call box(p, dom, i1, i2, j1, j2)
+      associate (p => ps%p)
+        call box(p, k, dom, i1, i2, j1, j2)
         ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
         ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
         ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
         ! between is searched, with the same links in the same order
-        near2 = (p%r + 1.5_wp)**2
-        deep2 = max(p%r - 1.5_wp, 0.0_wp)**2
+        near2 = (p%r(k) + 1.5_wp)**2
+        deep2 = max(p%r(k) - 1.5_wp, 0.0_wp)**2
         do j = j1, j2
           jg = dom%y0 + j
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            dist2 = (px - p%x)**2 + (py - p%y)**2
+            dist2 = (px - p%x(k))**2 + (py - p%y(k))**2
             if (dist2 >= near2 .or. dist2 < deep2) cycle
             if (.not. mask_fluid(ps, dom, i, j)) then
               if (ps%fluid_interior) then
-                if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)
+                if (inside(p, k, px, py)) call add_inner_links(ps, dom, k, i, j)
               end if
               cycle
             end if
@@ -257,7 +261,7 @@ contains
               if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
                 if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
               end if
-              if (.not. inside(p, px + ex(d), py + ey(d))) cycle
+              if (.not. inside(p, k, px + ex(d), py + ey(d))) cycle
               n = n + 1
               if (n > cap) then
                 cap = 2*cap
@@ -267,7 +271,7 @@ contains
               ps%lx(n) = i
               ps%ly(n) = j
               ps%ld(n) = d
-              ps%lq(n) = link_fraction(p, px, py, d)
+              ps%lq(n) = link_fraction(p, k, px, py, d)
               ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
             end do
           end do
@@ -310,7 +314,7 @@ contains
     do d = 1, 8
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
-      if (inside(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (inside(ps%p, k, fi - 0.5_wp, fjg - 0.5_wp)) cycle
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
       if (ps%ninner == size(ps%inner)) then
@@ -320,7 +324,7 @@ contains
       end if
       ps%ninner = ps%ninner + 1
       ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         link_fraction(ps%p, k, fi - 0.5_wp, fjg - 0.5_wp, d), &
                                          is_fluid(ps, dom, fi, fjg), 0.0_wp)
     end do
   end subroutine add_inner_links
@@ -359,7 +363,7 @@ contains
           rho = node_density(f, fi, fj)
         end if
       end if
-      call wall_of_link(ps%p(ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+      call wall_of_link(ps%p, ps%inner(l)%k, fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
                         uwx, uwy, wall)
       ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
     end do
@@ -440,10 +444,10 @@ contains
         j = g(t, YF)
         d = g(t, DI)
         q = ps%lq(l)
-        associate (p => ps%p(k), fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
+        associate (p => ps%p, fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
                    fb_ => v(t, FB))
           ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
-          call wall_of_link(p, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
+          call wall_of_link(p, k, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
           select case (ps%scheme)
           case (BB_YU)
             if (ps%lff(l)) then
@@ -477,7 +481,7 @@ contains
           associate (e => ps%lrow(l))
             ps%rows(1, e) = ps%rows(1, e) + fx
             ps%rows(2, e) = ps%rows(2, e) + fy
-            ps%rows(3, e) = ps%rows(3, e) + (xw - p%x)*fy - (yw - p%y)*fx
+            ps%rows(3, e) = ps%rows(3, e) + (xw - p%x(k))*fy - (yw - p%y(k))*fx
           end associate
         end associate
       end do
@@ -497,15 +501,15 @@ contains
     real(wp) :: px, py, ux, uy
     nodes = 0
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        call box(p, dom, i1, i2, j1, j2)
+      associate (p => ps%p)
+        call box(p, k, dom, i1, i2, j1, j2)
         do j = j1, j2
           jg = dom%y0 + j
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            if (.not. inside(p, px, py)) cycle
-            call surface_velocity(p, px, py, ux, uy)
+            if (.not. inside(p, k, px, py)) cycle
+            call surface_velocity(p, k, px, py, ux, uy)
             call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
             nodes = nodes + 1
           end do
@@ -531,28 +535,28 @@ contains
     m = 1
     do k = 1, ps%n
       do while (m <= ps%nold)
-        if (ps%old(m)%id >= ps%p(k)%id) exit
+        if (ps%old%id(m) >= ps%p%id(k)) exit
         m = m + 1
       end do
       if (m > ps%nold) exit
-      if (ps%old(m)%id /= ps%p(k)%id) cycle
-      associate (o => ps%old(m), p => ps%p(k))
-        call box(o, dom, i1, i2, j1, j2)
+      if (ps%old%id(m) /= ps%p%id(k)) cycle
+      associate (o => ps%old, p => ps%p)
+        call box(o, m, dom, i1, i2, j1, j2)
         do j = j1, j2
           jg = dom%y0 + j
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            if (.not. inside(o, px, py)) cycle
+            if (.not. inside(o, m, px, py)) cycle
             ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
-            if (inside(p, px, py)) cycle
+            if (inside(p, k, px, py)) cycle
             if (.not. is_fluid(ps, dom, i, jg)) cycle
             ! mean density of the fluid neighbours in the same row: a row is never split
             ! between ranks, so the refill does not depend on the decomposition
             rho = 0.0_wp
             nf = 0
             do d = 1, 3, 2
-              if (inside(o, px + ex(d), py)) cycle
+              if (inside(o, m, px + ex(d), py)) cycle
               if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
               rho = rho + sum(lattice_get_node(f, i + ex(d), j))
               nf = nf + 1
@@ -562,7 +566,7 @@ contains
             else
               rho = 1.0_wp
             end if
-            call surface_velocity(p, px, py, ux, uy)
+            call surface_velocity(p, k, px, py, ux, uy)
             call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
           end do
         end do
@@ -643,15 +647,16 @@ contains
   end subroutine row_entries
 
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
-  !! nodes for the links and their second fluid nodes.
-  pure subroutine box(p, dom, i1, i2, j1, j2)
-    type(particle_t), intent(in) :: p
+  !! nodes for the links and their second fluid nodes (disk k of s).
+  pure subroutine box(s, k, dom, i1, i2, j1, j2)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
     type(domain_t), intent(in) :: dom
     integer, intent(out) :: i1, i2, j1, j2
-    i1 = max(1, floor(p%x - p%r) - 2)
-    i2 = min(dom%nx, ceiling(p%x + p%r) + 2)
-    j1 = max(1, floor(p%y - p%r) - 2 - dom%y0)
-    j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
+    i1 = max(1, floor(s%x(k) - s%r(k)) - 2)
+    i2 = min(dom%nx, ceiling(s%x(k) + s%r(k)) + 2)
+    j1 = max(1, floor(s%y(k) - s%r(k)) - 2 - dom%y0)
+    j2 = min(dom%nyl, ceiling(s%y(k) + s%r(k)) + 2 - dom%y0)
   end subroutine box
 
   !> The particle index at each node of the slab (0 in the fluid), for output.
@@ -662,10 +667,10 @@ contains
     integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
-      call box(ps%p(k), dom, i1, i2, j1, j2)
+      call box(ps%p, k, dom, i1, i2, j1, j2)
       do j = j1, j2
         do i = i1, i2
-          if (inside(ps%p(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = ps%p(k)%id
+          if (inside(ps%p, k, i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = ps%p%id(k)
         end do
       end do
     end do
