@@ -47,26 +47,22 @@ contains
     uy = s%v(k) + s%omega(k)*(px - s%x(k))
   end subroutine surface_velocity
 
-  !> Whether the point (px, py) lies strictly inside particle k of s.
-  pure logical function inside(s, k, px, py)
-    type(particle_state_t), intent(in) :: s
-    integer, intent(in) :: k
-    real(wp), intent(in) :: px, py
-    inside = (px - s%x(k))**2 + (py - s%y(k))**2 < s%r(k)**2
+  !> Whether the point (px, py) lies strictly inside the disk at (x, y) of radius r.
+  pure logical function inside(x, y, r, px, py)
+    real(wp), intent(in) :: x, y, r, px, py
+    inside = (px - x)**2 + (py - y)**2 < r**2
   end function inside
 
-  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle k of s,
-  !! along e_d that lies outside it: |x + t e - X|^2 = r^2, the smaller root.
-  pure real(wp) function link_fraction(s, k, px, py, d) result(q)
-    type(particle_state_t), intent(in) :: s
-    integer, intent(in) :: k
-    real(wp), intent(in) :: px, py
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside the disk at (x, y)
+  !! of radius r, along e_d that lies outside it: |x + t e - X|^2 = r^2, the smaller root.
+  pure real(wp) function link_fraction(x, y, r, px, py, d) result(q)
+    real(wp), intent(in) :: x, y, r, px, py
     integer, intent(in) :: d
     real(wp) :: dxp, dyp, b, c, t
-    dxp = px - s%x(k)
-    dyp = py - s%y(k)
+    dxp = px - x
+    dyp = py - y
     b = dxp*ex(d) + dyp*ey(d)
-    c = dxp*dxp + dyp*dyp - s%r(k)*s%r(k)
+    c = dxp*dxp + dyp*dyp - r*r
     ! |e_d|^2 is 1 or 2: the division by it is the exact product with 1 or 1/2
     t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))*inv_e2(d)
     q = min(max(t, 1.0e-6_wp), 1.0_wp)
@@ -130,7 +126,7 @@ contains
     py = jg - 0.5_wp
     call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
-      fluid = .not. any([(inside(ps%p, k, px, py), k=1, ps%n)])
+      fluid = .not. any([(inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py), k=1, ps%n)])
       return
     end if
     fluid = .true.
@@ -138,11 +134,13 @@ contains
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
-          if (inside(ps%p, c%items(l), px, py)) fluid = .false.
+          k = c%items(l)
+          if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py)) fluid = .false.
         end do
       end do
       do l = 1, size(c%stray)
-        if (inside(ps%p, c%stray(l), px, py)) fluid = .false.
+        k = c%stray(l)
+        if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py)) fluid = .false.
       end do
     end associate
   end function fluid_far
@@ -157,7 +155,7 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, i, j, i1, i2, j1, j2
-    real(wp) :: py
+    real(wp) :: py, xk, yk, rk
     if (allocated(ps%solid)) then
       if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
         deallocate (ps%solid)
@@ -185,16 +183,17 @@ contains
     end if
     if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
     do k = 1, ps%n
-      associate (p => ps%p)
-        ps%placed(:, k) = [p%x(k), p%y(k), p%r(k)]
-        call mask_box(p%x(k), p%y(k), p%r(k), dom, i1, i2, j1, j2)
-        do j = j1, j2
-          py = dom%y0 + j - 0.5_wp
-          do i = i1, i2
-            if (inside(p, k, i - 0.5_wp, py)) ps%solid(i, j) = .true.
-          end do
+      xk = ps%p%x(k)
+      yk = ps%p%y(k)
+      rk = ps%p%r(k)
+      ps%placed(:, k) = [xk, yk, rk]
+      call mask_box(xk, yk, rk, dom, i1, i2, j1, j2)
+      do j = j1, j2
+        py = dom%y0 + j - 0.5_wp
+        do i = i1, i2
+          if (inside(xk, yk, rk, i - 0.5_wp, py)) ps%solid(i, j) = .true.
         end do
-      end associate
+      end do
     end do
     ps%nplaced = ps%n
     ps%placed_y0 = dom%y0
@@ -224,7 +223,7 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
-    real(wp) :: px, py, dist2, near2, deep2
+    real(wp) :: px, py, dist2, near2, deep2, xk, yk, rk
     call place_for_nodes(ps, dom)
     n = 0
     ps%ninner = 0
@@ -235,48 +234,50 @@ contains
       call resize(cap)
     end if
     do k = 1, ps%n
-      associate (p => ps%p)
-        call box(p, k, dom, i1, i2, j1, j2)
-        ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
-        ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
-        ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
-        ! between is searched, with the same links in the same order
-        near2 = (p%r(k) + 1.5_wp)**2
-        deep2 = max(p%r(k) - 1.5_wp, 0.0_wp)**2
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            dist2 = (px - p%x(k))**2 + (py - p%y(k))**2
-            if (dist2 >= near2 .or. dist2 < deep2) cycle
-            if (.not. mask_fluid(ps, dom, i, j)) then
-              if (ps%fluid_interior) then
-                if (inside(p, k, px, py)) call add_inner_links(ps, dom, k, i, j)
-              end if
-              cycle
+      call box(ps%p, k, dom, i1, i2, j1, j2)
+      ! the disk's centre and radius, read once
+      xk = ps%p%x(k)
+      yk = ps%p%y(k)
+      rk = ps%p%r(k)
+      ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
+      ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
+      ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
+      ! between is searched, with the same links in the same order
+      near2 = (rk + 1.5_wp)**2
+      deep2 = max(rk - 1.5_wp, 0.0_wp)**2
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          dist2 = (px - xk)**2 + (py - yk)**2
+          if (dist2 >= near2 .or. dist2 < deep2) cycle
+          if (.not. mask_fluid(ps, dom, i, j)) then
+            if (ps%fluid_interior) then
+              if (inside(xk, yk, rk, px, py)) call add_inner_links(ps, dom, k, i, j)
             end if
-            do d = 1, 8
-              ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
-              if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
-                if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
-              end if
-              if (.not. inside(p, k, px + ex(d), py + ey(d))) cycle
-              n = n + 1
-              if (n > cap) then
-                cap = 2*cap
-                call resize(cap)
-              end if
-              ps%lp(n) = k
-              ps%lx(n) = i
-              ps%ly(n) = j
-              ps%ld(n) = d
-              ps%lq(n) = link_fraction(p, k, px, py, d)
-              ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
-            end do
+            cycle
+          end if
+          do d = 1, 8
+            ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
+            if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
+              if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
+            end if
+            if (.not. inside(xk, yk, rk, px + ex(d), py + ey(d))) cycle
+            n = n + 1
+            if (n > cap) then
+              cap = 2*cap
+              call resize(cap)
+            end if
+            ps%lp(n) = k
+            ps%lx(n) = i
+            ps%ly(n) = j
+            ps%ld(n) = d
+            ps%lq(n) = link_fraction(xk, yk, rk, px, py, d)
+            ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
           end do
         end do
-      end associate
+      end do
     end do
     ps%nlinks = n
     ps%searches = ps%searches + 1
@@ -314,7 +315,7 @@ contains
     do d = 1, 8
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
-      if (inside(ps%p, k, fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
       if (ps%ninner == size(ps%inner)) then
@@ -324,7 +325,8 @@ contains
       end if
       ps%ninner = ps%ninner + 1
       ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(ps%p, k, fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
+                                                       fi - 0.5_wp, fjg - 0.5_wp, d), &
                                          is_fluid(ps, dom, fi, fjg), 0.0_wp)
     end do
   end subroutine add_inner_links
@@ -498,23 +500,24 @@ contains
     type(lattice_t), intent(inout) :: f
     integer :: k, i, j, jg, i1, i2, j1, j2
     integer(i8) :: nodes
-    real(wp) :: px, py, ux, uy
+    real(wp) :: px, py, ux, uy, xk, yk, rk
     nodes = 0
     do k = 1, ps%n
-      associate (p => ps%p)
-        call box(p, k, dom, i1, i2, j1, j2)
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            if (.not. inside(p, k, px, py)) cycle
-            call surface_velocity(p, k, px, py, ux, uy)
-            call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
-            nodes = nodes + 1
-          end do
+      call box(ps%p, k, dom, i1, i2, j1, j2)
+      xk = ps%p%x(k)
+      yk = ps%p%y(k)
+      rk = ps%p%r(k)
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          if (.not. inside(xk, yk, rk, px, py)) cycle
+          call surface_velocity(ps%p, k, px, py, ux, uy)
+          call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
+          nodes = nodes + 1
         end do
-      end associate
+      end do
     end do
     ps%resets = ps%resets + 1
     ps%nodes_reset = ps%nodes_reset + nodes
@@ -530,7 +533,7 @@ contains
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer :: k, m, i, j, jg, d, nf, i1, i2, j1, j2
-    real(wp) :: px, py, rho, ux, uy
+    real(wp) :: px, py, rho, ux, uy, xo, yo, ro, xk, yk, rk
     call place_for_nodes(ps, dom)
     m = 1
     do k = 1, ps%n
@@ -540,6 +543,13 @@ contains
       end do
       if (m > ps%nold) exit
       if (ps%old%id(m) /= ps%p%id(k)) cycle
+      ! the old disk and the new one
+      xo = ps%old%x(m)
+      yo = ps%old%y(m)
+      ro = ps%old%r(m)
+      xk = ps%p%x(k)
+      yk = ps%p%y(k)
+      rk = ps%p%r(k)
       associate (o => ps%old, p => ps%p)
         call box(o, m, dom, i1, i2, j1, j2)
         do j = j1, j2
@@ -547,16 +557,16 @@ contains
           do i = i1, i2
             px = i - 0.5_wp
             py = jg - 0.5_wp
-            if (.not. inside(o, m, px, py)) cycle
+            if (.not. inside(xo, yo, ro, px, py)) cycle
             ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
-            if (inside(p, k, px, py)) cycle
+            if (inside(xk, yk, rk, px, py)) cycle
             if (.not. is_fluid(ps, dom, i, jg)) cycle
             ! mean density of the fluid neighbours in the same row: a row is never split
             ! between ranks, so the refill does not depend on the decomposition
             rho = 0.0_wp
             nf = 0
             do d = 1, 3, 2
-              if (inside(o, m, px + ex(d), py)) cycle
+              if (inside(xo, yo, ro, px + ex(d), py)) cycle
               if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
               rho = rho + sum(lattice_get_node(f, i + ex(d), j))
               nf = nf + 1
@@ -670,7 +680,8 @@ contains
       call box(ps%p, k, dom, i1, i2, j1, j2)
       do j = j1, j2
         do i = i1, i2
-          if (inside(ps%p, k, i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = ps%p%id(k)
+          if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) &
+            id(i, j) = ps%p%id(k)
         end do
       end do
     end do
