@@ -35,34 +35,48 @@ module dkt_particle_links
   !> 1/|e_d|^2 of the moving directions: 1 along the axes, 1/2 (exact) along the diagonals
   real(wp), parameter :: inv_e2(1:8) = 1.0_wp/real(ex(1:8)**2 + ey(1:8)**2, wp)
 
+  !> One disk copied out of the state (disk): what the loops over its nodes read, in scalars
+  type :: disk_t
+    real(wp) :: x = 0, y = 0, r = 0      !! centre, radius
+    real(wp) :: u = 0, v = 0, omega = 0  !! velocity, angular velocity
+  end type disk_t
+
 contains
 
-  !> The rigid-body velocity U + Omega x (x - X) of particle k of s at the point (px, py).
-  pure subroutine surface_velocity(s, k, px, py, ux, uy)
-    type(particle_state_t), intent(in) :: s
-    integer, intent(in) :: k
+  !> The rigid-body velocity U + Omega x (x - X) of disk p at the point (px, py).
+  pure subroutine surface_velocity(p, px, py, ux, uy)
+    type(disk_t), intent(in) :: p
     real(wp), intent(in) :: px, py
     real(wp), intent(out) :: ux, uy
-    ux = s%u(k) - s%omega(k)*(py - s%y(k))
-    uy = s%v(k) + s%omega(k)*(px - s%x(k))
+    ux = p%u - p%omega*(py - p%y)
+    uy = p%v + p%omega*(px - p%x)
   end subroutine surface_velocity
 
-  !> Whether the point (px, py) lies strictly inside the disk at (x, y) of radius r.
-  pure logical function inside(x, y, r, px, py)
-    real(wp), intent(in) :: x, y, r, px, py
-    inside = (px - x)**2 + (py - y)**2 < r**2
+  !> Disk k of s, copied out of the arrays for the loops over its nodes.
+  pure type(disk_t) function disk(s, k) result(p)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
+    p = disk_t(s%x(k), s%y(k), s%r(k), s%u(k), s%v(k), s%omega(k))
+  end function disk
+
+  !> Whether the point (px, py) lies strictly inside disk p.
+  pure logical function inside(p, px, py)
+    type(disk_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
+    inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
   end function inside
 
-  !> The fraction t in (0, 1] of the link from the point (px, py), outside the disk at (x, y)
-  !! of radius r, along e_d that lies outside it: |x + t e - X|^2 = r^2, the smaller root.
-  pure real(wp) function link_fraction(x, y, r, px, py, d) result(q)
-    real(wp), intent(in) :: x, y, r, px, py
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside disk p, along e_d
+  !! that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
+  pure real(wp) function link_fraction(p, px, py, d) result(q)
+    type(disk_t), intent(in) :: p
+    real(wp), intent(in) :: px, py
     integer, intent(in) :: d
     real(wp) :: dxp, dyp, b, c, t
-    dxp = px - x
-    dyp = py - y
+    dxp = px - p%x
+    dyp = py - p%y
     b = dxp*ex(d) + dyp*ey(d)
-    c = dxp*dxp + dyp*dyp - r*r
+    c = dxp*dxp + dyp*dyp - p%r*p%r
     ! |e_d|^2 is 1 or 2: the division by it is the exact product with 1 or 1/2
     t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))*inv_e2(d)
     q = min(max(t, 1.0e-6_wp), 1.0_wp)
@@ -71,14 +85,14 @@ contains
   !> The wall point x_w = x_f + q e_d of the link from node (i, jg) (global row) along e_d, the
   !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
   !! the population bounced back towards x_f. The interior side of the same link receives -W.
-  pure subroutine wall_of_link(s, k, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
-    type(particle_state_t), intent(in) :: s !! the disks; the link is of disk k
-    integer, intent(in) :: k, i, jg, d
+  pure subroutine wall_of_link(p, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
+    type(disk_t), intent(in) :: p
+    integer, intent(in) :: i, jg, d
     real(wp), intent(in) :: q, rho
     real(wp), intent(out) :: xw, yw, uwx, uwy, wall
     xw = i - 0.5_wp + q*ex(d)
     yw = jg - 0.5_wp + q*ey(d)
-    call surface_velocity(s, k, xw, yw, uwx, uwy)
+    call surface_velocity(p, xw, yw, uwx, uwy)
     wall = -2.0_wp*w(d)*rho*(ex(d)*uwx + ey(d)*uwy)/cs2
   end subroutine wall_of_link
 
@@ -126,7 +140,7 @@ contains
     py = jg - 0.5_wp
     call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
-      fluid = .not. any([(inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py), k=1, ps%n)])
+      fluid = .not. any([(inside(disk(ps%p, k), px, py), k=1, ps%n)])
       return
     end if
     fluid = .true.
@@ -135,12 +149,12 @@ contains
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
           k = c%items(l)
-          if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py)) fluid = .false.
+          if (inside(disk(ps%p, k), px, py)) fluid = .false.
         end do
       end do
       do l = 1, size(c%stray)
         k = c%stray(l)
-        if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py)) fluid = .false.
+        if (inside(disk(ps%p, k), px, py)) fluid = .false.
       end do
     end associate
   end function fluid_far
@@ -155,7 +169,8 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, i, j, i1, i2, j1, j2
-    real(wp) :: py, xk, yk, rk
+    real(wp) :: py
+    type(disk_t) :: pk
     if (allocated(ps%solid)) then
       if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
         deallocate (ps%solid)
@@ -183,15 +198,13 @@ contains
     end if
     if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
     do k = 1, ps%n
-      xk = ps%p%x(k)
-      yk = ps%p%y(k)
-      rk = ps%p%r(k)
-      ps%placed(:, k) = [xk, yk, rk]
-      call mask_box(xk, yk, rk, dom, i1, i2, j1, j2)
+      pk = disk(ps%p, k)
+      ps%placed(:, k) = [pk%x, pk%y, pk%r]
+      call mask_box(pk%x, pk%y, pk%r, dom, i1, i2, j1, j2)
       do j = j1, j2
         py = dom%y0 + j - 0.5_wp
         do i = i1, i2
-          if (inside(xk, yk, rk, i - 0.5_wp, py)) ps%solid(i, j) = .true.
+          if (inside(pk, i - 0.5_wp, py)) ps%solid(i, j) = .true.
         end do
       end do
     end do
@@ -223,7 +236,8 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
-    real(wp) :: px, py, dist2, near2, deep2, xk, yk, rk
+    real(wp) :: px, py, dist2, near2, deep2
+    type(disk_t) :: pk
     call place_for_nodes(ps, dom)
     n = 0
     ps%ninner = 0
@@ -234,27 +248,24 @@ contains
       call resize(cap)
     end if
     do k = 1, ps%n
-      call box(ps%p, k, dom, i1, i2, j1, j2)
-      ! the disk's centre and radius, read once
-      xk = ps%p%x(k)
-      yk = ps%p%y(k)
-      rk = ps%p%r(k)
+      pk = disk(ps%p, k)
+      call box(pk, dom, i1, i2, j1, j2)
       ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
       ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
       ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
       ! between is searched, with the same links in the same order
-      near2 = (rk + 1.5_wp)**2
-      deep2 = max(rk - 1.5_wp, 0.0_wp)**2
+      near2 = (pk%r + 1.5_wp)**2
+      deep2 = max(pk%r - 1.5_wp, 0.0_wp)**2
       do j = j1, j2
         jg = dom%y0 + j
         do i = i1, i2
           px = i - 0.5_wp
           py = jg - 0.5_wp
-          dist2 = (px - xk)**2 + (py - yk)**2
+          dist2 = (px - pk%x)**2 + (py - pk%y)**2
           if (dist2 >= near2 .or. dist2 < deep2) cycle
           if (.not. mask_fluid(ps, dom, i, j)) then
             if (ps%fluid_interior) then
-              if (inside(xk, yk, rk, px, py)) call add_inner_links(ps, dom, k, i, j)
+              if (inside(pk, px, py)) call add_inner_links(ps, dom, k, i, j)
             end if
             cycle
           end if
@@ -263,7 +274,7 @@ contains
             if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
               if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
             end if
-            if (.not. inside(xk, yk, rk, px + ex(d), py + ey(d))) cycle
+            if (.not. inside(pk, px + ex(d), py + ey(d))) cycle
             n = n + 1
             if (n > cap) then
               cap = 2*cap
@@ -273,7 +284,7 @@ contains
             ps%lx(n) = i
             ps%ly(n) = j
             ps%ld(n) = d
-            ps%lq(n) = link_fraction(xk, yk, rk, px, py, d)
+            ps%lq(n) = link_fraction(pk, px, py, d)
             ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
           end do
         end do
@@ -315,7 +326,7 @@ contains
     do d = 1, 8
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
-      if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (inside(disk(ps%p, k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
       if (ps%ninner == size(ps%inner)) then
@@ -325,7 +336,7 @@ contains
       end if
       ps%ninner = ps%ninner + 1
       ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
+                                         link_fraction(disk(ps%p, k), &
                                                        fi - 0.5_wp, fjg - 0.5_wp, d), &
                                          is_fluid(ps, dom, fi, fjg), 0.0_wp)
     end do
@@ -365,7 +376,7 @@ contains
           rho = node_density(f, fi, fj)
         end if
       end if
-      call wall_of_link(ps%p, ps%inner(l)%k, fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+      call wall_of_link(disk(ps%p, ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
                         uwx, uwy, wall)
       ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
     end do
@@ -401,6 +412,7 @@ contains
     integer, parameter :: FI = 1, FIB = 2, FFF = 3, RHO = 4, FB = 5
     integer :: l, m1, n, t, k, i, j, d
     real(wp) :: q, uwx, uwy, wall, xw, yw, fx, fy
+    type(disk_t) :: pk
     if (j2 < j1) return
     do l = 1, ps%nrows
       if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
@@ -446,10 +458,11 @@ contains
         j = g(t, YF)
         d = g(t, DI)
         q = ps%lq(l)
-        associate (p => ps%p, fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
+        pk = disk(ps%p, k)
+        associate (fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
                    fb_ => v(t, FB))
           ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
-          call wall_of_link(p, k, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
+          call wall_of_link(pk, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
           select case (ps%scheme)
           case (BB_YU)
             if (ps%lff(l)) then
@@ -483,7 +496,7 @@ contains
           associate (e => ps%lrow(l))
             ps%rows(1, e) = ps%rows(1, e) + fx
             ps%rows(2, e) = ps%rows(2, e) + fy
-            ps%rows(3, e) = ps%rows(3, e) + (xw - p%x(k))*fy - (yw - p%y(k))*fx
+            ps%rows(3, e) = ps%rows(3, e) + (xw - pk%x)*fy - (yw - pk%y)*fx
           end associate
         end associate
       end do
@@ -500,20 +513,19 @@ contains
     type(lattice_t), intent(inout) :: f
     integer :: k, i, j, jg, i1, i2, j1, j2
     integer(i8) :: nodes
-    real(wp) :: px, py, ux, uy, xk, yk, rk
+    real(wp) :: px, py, ux, uy
+    type(disk_t) :: pk
     nodes = 0
     do k = 1, ps%n
-      call box(ps%p, k, dom, i1, i2, j1, j2)
-      xk = ps%p%x(k)
-      yk = ps%p%y(k)
-      rk = ps%p%r(k)
+      pk = disk(ps%p, k)
+      call box(pk, dom, i1, i2, j1, j2)
       do j = j1, j2
         jg = dom%y0 + j
         do i = i1, i2
           px = i - 0.5_wp
           py = jg - 0.5_wp
-          if (.not. inside(xk, yk, rk, px, py)) cycle
-          call surface_velocity(ps%p, k, px, py, ux, uy)
+          if (.not. inside(pk, px, py)) cycle
+          call surface_velocity(pk, px, py, ux, uy)
           call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
           nodes = nodes + 1
         end do
@@ -533,7 +545,8 @@ contains
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer :: k, m, i, j, jg, d, nf, i1, i2, j1, j2
-    real(wp) :: px, py, rho, ux, uy, xo, yo, ro, xk, yk, rk
+    real(wp) :: px, py, rho, ux, uy
+    type(disk_t) :: po, pk
     call place_for_nodes(ps, dom)
     m = 1
     do k = 1, ps%n
@@ -544,43 +557,37 @@ contains
       if (m > ps%nold) exit
       if (ps%old%id(m) /= ps%p%id(k)) cycle
       ! the old disk and the new one
-      xo = ps%old%x(m)
-      yo = ps%old%y(m)
-      ro = ps%old%r(m)
-      xk = ps%p%x(k)
-      yk = ps%p%y(k)
-      rk = ps%p%r(k)
-      associate (o => ps%old, p => ps%p)
-        call box(o, m, dom, i1, i2, j1, j2)
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            if (.not. inside(xo, yo, ro, px, py)) cycle
-            ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
-            if (inside(xk, yk, rk, px, py)) cycle
-            if (.not. is_fluid(ps, dom, i, jg)) cycle
-            ! mean density of the fluid neighbours in the same row: a row is never split
-            ! between ranks, so the refill does not depend on the decomposition
-            rho = 0.0_wp
-            nf = 0
-            do d = 1, 3, 2
-              if (inside(xo, yo, ro, px + ex(d), py)) cycle
-              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
-              rho = rho + sum(lattice_get_node(f, i + ex(d), j))
-              nf = nf + 1
-            end do
-            if (nf > 0) then
-              rho = rho/nf
-            else
-              rho = 1.0_wp
-            end if
-            call surface_velocity(p, k, px, py, ux, uy)
-            call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
+      po = disk(ps%old, m)
+      pk = disk(ps%p, k)
+      call box(po, dom, i1, i2, j1, j2)
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          if (.not. inside(po, px, py)) cycle
+          ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
+          if (inside(pk, px, py)) cycle
+          if (.not. is_fluid(ps, dom, i, jg)) cycle
+          ! mean density of the fluid neighbours in the same row: a row is never split
+          ! between ranks, so the refill does not depend on the decomposition
+          rho = 0.0_wp
+          nf = 0
+          do d = 1, 3, 2
+            if (inside(po, px + ex(d), py)) cycle
+            if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+            rho = rho + sum(lattice_get_node(f, i + ex(d), j))
+            nf = nf + 1
           end do
+          if (nf > 0) then
+            rho = rho/nf
+          else
+            rho = 1.0_wp
+          end if
+          call surface_velocity(pk, px, py, ux, uy)
+          call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
         end do
-      end associate
+      end do
     end do
   end subroutine particles_refill
 
@@ -657,16 +664,15 @@ contains
   end subroutine row_entries
 
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
-  !! nodes for the links and their second fluid nodes (disk k of s).
-  pure subroutine box(s, k, dom, i1, i2, j1, j2)
-    type(particle_state_t), intent(in) :: s
-    integer, intent(in) :: k
+  !! nodes for the links and their second fluid nodes.
+  pure subroutine box(p, dom, i1, i2, j1, j2)
+    type(disk_t), intent(in) :: p
     type(domain_t), intent(in) :: dom
     integer, intent(out) :: i1, i2, j1, j2
-    i1 = max(1, floor(s%x(k) - s%r(k)) - 2)
-    i2 = min(dom%nx, ceiling(s%x(k) + s%r(k)) + 2)
-    j1 = max(1, floor(s%y(k) - s%r(k)) - 2 - dom%y0)
-    j2 = min(dom%nyl, ceiling(s%y(k) + s%r(k)) + 2 - dom%y0)
+    i1 = max(1, floor(p%x - p%r) - 2)
+    i2 = min(dom%nx, ceiling(p%x + p%r) + 2)
+    j1 = max(1, floor(p%y - p%r) - 2 - dom%y0)
+    j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
   end subroutine box
 
   !> The particle index at each node of the slab (0 in the fluid), for output.
@@ -677,10 +683,10 @@ contains
     integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
-      call box(ps%p, k, dom, i1, i2, j1, j2)
+      call box(disk(ps%p, k), dom, i1, i2, j1, j2)
       do j = j1, j2
         do i = i1, i2
-          if (inside(ps%p%x(k), ps%p%y(k), ps%p%r(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) &
+          if (inside(disk(ps%p, k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) &
             id(i, j) = ps%p%id(k)
         end do
       end do
