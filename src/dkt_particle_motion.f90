@@ -37,8 +37,8 @@ contains
     integer :: k, s, m
     integer, allocatable :: near(:)
     h = 1.0_wp/ps%substeps
-    ! contiguous copies of the start-of-step centres, made once: a component array passed on
-    ! would be copied per call
+    ! the start-of-step centres, which the contacts take; the particle being moved puts its
+    ! present centre in its own place during its sub-steps
     xs = ps%p%x(1:ps%n)
     ys = ps%p%y(1:ps%n)
     rs = ps%p%r(1:ps%n)
