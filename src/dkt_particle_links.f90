@@ -25,7 +25,8 @@ module dkt_particle_links
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_box
-  use dkt_particles, only: particles_t, particle_t, inner_link_t
+  use dkt_particles, only: particles_t, inner_link_t
+  use dkt_particle_state, only: particle_state_t
   implicit none
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
@@ -34,28 +35,41 @@ module dkt_particle_links
   !> 1/|e_d|^2 of the moving directions: 1 along the axes, 1/2 (exact) along the diagonals
   real(wp), parameter :: inv_e2(1:8) = 1.0_wp/real(ex(1:8)**2 + ey(1:8)**2, wp)
 
+  !> One disk copied out of the state (disk): what the loops over its nodes read, in scalars
+  type :: disk_t
+    real(wp) :: x = 0, y = 0, r = 0      !! centre, radius
+    real(wp) :: u = 0, v = 0, omega = 0  !! velocity, angular velocity
+  end type disk_t
+
 contains
 
-  !> The rigid-body velocity U + Omega x (x - X) of particle p at the point (px, py).
+  !> The rigid-body velocity U + Omega x (x - X) of disk p at the point (px, py).
   pure subroutine surface_velocity(p, px, py, ux, uy)
-    type(particle_t), intent(in) :: p
+    type(disk_t), intent(in) :: p
     real(wp), intent(in) :: px, py
     real(wp), intent(out) :: ux, uy
     ux = p%u - p%omega*(py - p%y)
     uy = p%v + p%omega*(px - p%x)
   end subroutine surface_velocity
 
-  !> Whether the point (px, py) lies strictly inside particle k.
+  !> Disk k of s, copied out of the arrays for the loops over its nodes.
+  pure type(disk_t) function disk(s, k) result(p)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: k
+    p = disk_t(s%x(k), s%y(k), s%r(k), s%u(k), s%v(k), s%omega(k))
+  end function disk
+
+  !> Whether the point (px, py) lies strictly inside disk p.
   pure logical function inside(p, px, py)
-    type(particle_t), intent(in) :: p
+    type(disk_t), intent(in) :: p
     real(wp), intent(in) :: px, py
     inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
   end function inside
 
-  !> The fraction t in (0, 1] of the link from the point (px, py), outside particle p, along
-  !! e_d that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
+  !> The fraction t in (0, 1] of the link from the point (px, py), outside disk p, along e_d
+  !! that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
   pure real(wp) function link_fraction(p, px, py, d) result(q)
-    type(particle_t), intent(in) :: p
+    type(disk_t), intent(in) :: p
     real(wp), intent(in) :: px, py
     integer, intent(in) :: d
     real(wp) :: dxp, dyp, b, c, t
@@ -72,7 +86,7 @@ contains
   !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
   !! the population bounced back towards x_f. The interior side of the same link receives -W.
   pure subroutine wall_of_link(p, i, jg, d, q, rho, xw, yw, uwx, uwy, wall)
-    type(particle_t), intent(in) :: p
+    type(disk_t), intent(in) :: p
     integer, intent(in) :: i, jg, d
     real(wp), intent(in) :: q, rho
     real(wp), intent(out) :: xw, yw, uwx, uwy, wall
@@ -126,7 +140,7 @@ contains
     py = jg - 0.5_wp
     call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
-      fluid = .not. any([(inside(ps%p(k), px, py), k=1, ps%n)])
+      fluid = .not. any([(inside(disk(ps%p, k), px, py), k=1, ps%n)])
       return
     end if
     fluid = .true.
@@ -134,11 +148,13 @@ contains
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
-          if (inside(ps%p(c%items(l)), px, py)) fluid = .false.
+          k = c%items(l)
+          if (inside(disk(ps%p, k), px, py)) fluid = .false.
         end do
       end do
       do l = 1, size(c%stray)
-        if (inside(ps%p(c%stray(l)), px, py)) fluid = .false.
+        k = c%stray(l)
+        if (inside(disk(ps%p, k), px, py)) fluid = .false.
       end do
     end associate
   end function fluid_far
@@ -154,6 +170,7 @@ contains
     type(domain_t), intent(in) :: dom
     integer :: k, i, j, i1, i2, j1, j2
     real(wp) :: py
+    type(disk_t) :: pk
     if (allocated(ps%solid)) then
       if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
         deallocate (ps%solid)
@@ -163,9 +180,9 @@ contains
       ps%nplaced = -1
     end if
     if (ps%nplaced == ps%n .and. ps%placed_y0 == dom%y0) then
-      if (all(ps%placed(1, 1:ps%n) == ps%p(1:ps%n)%x .and. &
-              ps%placed(2, 1:ps%n) == ps%p(1:ps%n)%y .and. &
-              ps%placed(3, 1:ps%n) == ps%p(1:ps%n)%r)) return
+      if (all(ps%placed(1, 1:ps%n) == ps%p%x(1:ps%n) .and. &
+              ps%placed(2, 1:ps%n) == ps%p%y(1:ps%n) .and. &
+              ps%placed(3, 1:ps%n) == ps%p%r(1:ps%n))) return
     end if
     if (ps%nplaced < 0 .or. ps%placed_y0 /= dom%y0) then
       ps%solid = .false.
@@ -175,22 +192,21 @@ contains
         ps%solid(i1:i2, j1:j2) = .false.
       end do
     end if
-    call cells_build(ps%ncells, ps%p(1:ps%n)%x, ps%p(1:ps%n)%y, 2.0_wp*ps%rmax)
+    call cells_build(ps%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
     if (allocated(ps%placed)) then
       if (size(ps%placed, 2) < ps%n) deallocate (ps%placed)
     end if
     if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        ps%placed(:, k) = [p%x, p%y, p%r]
-        call mask_box(p%x, p%y, p%r, dom, i1, i2, j1, j2)
-        do j = j1, j2
-          py = dom%y0 + j - 0.5_wp
-          do i = i1, i2
-            if (inside(p, i - 0.5_wp, py)) ps%solid(i, j) = .true.
-          end do
+      pk = disk(ps%p, k)
+      ps%placed(:, k) = [pk%x, pk%y, pk%r]
+      call mask_box(pk%x, pk%y, pk%r, dom, i1, i2, j1, j2)
+      do j = j1, j2
+        py = dom%y0 + j - 0.5_wp
+        do i = i1, i2
+          if (inside(pk, i - 0.5_wp, py)) ps%solid(i, j) = .true.
         end do
-      end associate
+      end do
     end do
     ps%nplaced = ps%n
     ps%placed_y0 = dom%y0
@@ -221,6 +237,7 @@ contains
     type(domain_t), intent(in) :: dom
     integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
     real(wp) :: px, py, dist2, near2, deep2
+    type(disk_t) :: pk
     call place_for_nodes(ps, dom)
     n = 0
     ps%ninner = 0
@@ -231,48 +248,47 @@ contains
       call resize(cap)
     end if
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        call box(p, dom, i1, i2, j1, j2)
-        ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
-        ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
-        ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
-        ! between is searched, with the same links in the same order
-        near2 = (p%r + 1.5_wp)**2
-        deep2 = max(p%r - 1.5_wp, 0.0_wp)**2
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            dist2 = (px - p%x)**2 + (py - p%y)**2
-            if (dist2 >= near2 .or. dist2 < deep2) cycle
-            if (.not. mask_fluid(ps, dom, i, j)) then
-              if (ps%fluid_interior) then
-                if (inside(p, px, py)) call add_inner_links(ps, dom, k, i, j)
-              end if
-              cycle
+      pk = disk(ps%p, k)
+      call box(pk, dom, i1, i2, j1, j2)
+      ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
+      ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
+      ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
+      ! between is searched, with the same links in the same order
+      near2 = (pk%r + 1.5_wp)**2
+      deep2 = max(pk%r - 1.5_wp, 0.0_wp)**2
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          dist2 = (px - pk%x)**2 + (py - pk%y)**2
+          if (dist2 >= near2 .or. dist2 < deep2) cycle
+          if (.not. mask_fluid(ps, dom, i, j)) then
+            if (ps%fluid_interior) then
+              if (inside(pk, px, py)) call add_inner_links(ps, dom, k, i, j)
             end if
-            do d = 1, 8
-              ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
-              if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
-                if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
-              end if
-              if (.not. inside(p, px + ex(d), py + ey(d))) cycle
-              n = n + 1
-              if (n > cap) then
-                cap = 2*cap
-                call resize(cap)
-              end if
-              ps%lp(n) = k
-              ps%lx(n) = i
-              ps%ly(n) = j
-              ps%ld(n) = d
-              ps%lq(n) = link_fraction(p, px, py, d)
-              ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
-            end do
+            cycle
+          end if
+          do d = 1, 8
+            ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
+            if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
+              if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
+            end if
+            if (.not. inside(pk, px + ex(d), py + ey(d))) cycle
+            n = n + 1
+            if (n > cap) then
+              cap = 2*cap
+              call resize(cap)
+            end if
+            ps%lp(n) = k
+            ps%lx(n) = i
+            ps%ly(n) = j
+            ps%ld(n) = d
+            ps%lq(n) = link_fraction(pk, px, py, d)
+            ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
           end do
         end do
-      end associate
+      end do
     end do
     ps%nlinks = n
     ps%searches = ps%searches + 1
@@ -310,7 +326,7 @@ contains
     do d = 1, 8
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
-      if (inside(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      if (inside(disk(ps%p, k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
       if (ps%ninner == size(ps%inner)) then
@@ -320,7 +336,8 @@ contains
       end if
       ps%ninner = ps%ninner + 1
       ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(ps%p(k), fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         link_fraction(disk(ps%p, k), &
+                                                       fi - 0.5_wp, fjg - 0.5_wp, d), &
                                          is_fluid(ps, dom, fi, fjg), 0.0_wp)
     end do
   end subroutine add_inner_links
@@ -359,7 +376,7 @@ contains
           rho = node_density(f, fi, fj)
         end if
       end if
-      call wall_of_link(ps%p(ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+      call wall_of_link(disk(ps%p, ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
                         uwx, uwy, wall)
       ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
     end do
@@ -395,6 +412,7 @@ contains
     integer, parameter :: FI = 1, FIB = 2, FFF = 3, RHO = 4, FB = 5
     integer :: l, m1, n, t, k, i, j, d
     real(wp) :: q, uwx, uwy, wall, xw, yw, fx, fy
+    type(disk_t) :: pk
     if (j2 < j1) return
     do l = 1, ps%nrows
       if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
@@ -440,10 +458,11 @@ contains
         j = g(t, YF)
         d = g(t, DI)
         q = ps%lq(l)
-        associate (p => ps%p(k), fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
+        pk = disk(ps%p, k)
+        associate (fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
                    fb_ => v(t, FB))
           ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
-          call wall_of_link(p, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
+          call wall_of_link(pk, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
           select case (ps%scheme)
           case (BB_YU)
             if (ps%lff(l)) then
@@ -477,7 +496,7 @@ contains
           associate (e => ps%lrow(l))
             ps%rows(1, e) = ps%rows(1, e) + fx
             ps%rows(2, e) = ps%rows(2, e) + fy
-            ps%rows(3, e) = ps%rows(3, e) + (xw - p%x)*fy - (yw - p%y)*fx
+            ps%rows(3, e) = ps%rows(3, e) + (xw - pk%x)*fy - (yw - pk%y)*fx
           end associate
         end associate
       end do
@@ -495,22 +514,22 @@ contains
     integer :: k, i, j, jg, i1, i2, j1, j2
     integer(i8) :: nodes
     real(wp) :: px, py, ux, uy
+    type(disk_t) :: pk
     nodes = 0
     do k = 1, ps%n
-      associate (p => ps%p(k))
-        call box(p, dom, i1, i2, j1, j2)
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            if (.not. inside(p, px, py)) cycle
-            call surface_velocity(p, px, py, ux, uy)
-            call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
-            nodes = nodes + 1
-          end do
+      pk = disk(ps%p, k)
+      call box(pk, dom, i1, i2, j1, j2)
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          if (.not. inside(pk, px, py)) cycle
+          call surface_velocity(pk, px, py, ux, uy)
+          call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
+          nodes = nodes + 1
         end do
-      end associate
+      end do
     end do
     ps%resets = ps%resets + 1
     ps%nodes_reset = ps%nodes_reset + nodes
@@ -527,46 +546,48 @@ contains
     type(lattice_t), intent(inout) :: f
     integer :: k, m, i, j, jg, d, nf, i1, i2, j1, j2
     real(wp) :: px, py, rho, ux, uy
+    type(disk_t) :: po, pk
     call place_for_nodes(ps, dom)
     m = 1
     do k = 1, ps%n
       do while (m <= ps%nold)
-        if (ps%old(m)%id >= ps%p(k)%id) exit
+        if (ps%old%id(m) >= ps%p%id(k)) exit
         m = m + 1
       end do
       if (m > ps%nold) exit
-      if (ps%old(m)%id /= ps%p(k)%id) cycle
-      associate (o => ps%old(m), p => ps%p(k))
-        call box(o, dom, i1, i2, j1, j2)
-        do j = j1, j2
-          jg = dom%y0 + j
-          do i = i1, i2
-            px = i - 0.5_wp
-            py = jg - 0.5_wp
-            if (.not. inside(o, px, py)) cycle
-            ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
-            if (inside(p, px, py)) cycle
-            if (.not. is_fluid(ps, dom, i, jg)) cycle
-            ! mean density of the fluid neighbours in the same row: a row is never split
-            ! between ranks, so the refill does not depend on the decomposition
-            rho = 0.0_wp
-            nf = 0
-            do d = 1, 3, 2
-              if (inside(o, px + ex(d), py)) cycle
-              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
-              rho = rho + sum(lattice_get_node(f, i + ex(d), j))
-              nf = nf + 1
-            end do
-            if (nf > 0) then
-              rho = rho/nf
-            else
-              rho = 1.0_wp
-            end if
-            call surface_velocity(p, px, py, ux, uy)
-            call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
+      if (ps%old%id(m) /= ps%p%id(k)) cycle
+      ! the old disk and the new one
+      po = disk(ps%old, m)
+      pk = disk(ps%p, k)
+      call box(po, dom, i1, i2, j1, j2)
+      do j = j1, j2
+        jg = dom%y0 + j
+        do i = i1, i2
+          px = i - 0.5_wp
+          py = jg - 0.5_wp
+          if (.not. inside(po, px, py)) cycle
+          ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
+          if (inside(pk, px, py)) cycle
+          if (.not. is_fluid(ps, dom, i, jg)) cycle
+          ! mean density of the fluid neighbours in the same row: a row is never split
+          ! between ranks, so the refill does not depend on the decomposition
+          rho = 0.0_wp
+          nf = 0
+          do d = 1, 3, 2
+            if (inside(po, px + ex(d), py)) cycle
+            if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+            rho = rho + sum(lattice_get_node(f, i + ex(d), j))
+            nf = nf + 1
           end do
+          if (nf > 0) then
+            rho = rho/nf
+          else
+            rho = 1.0_wp
+          end if
+          call surface_velocity(pk, px, py, ux, uy)
+          call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
         end do
-      end associate
+      end do
     end do
   end subroutine particles_refill
 
@@ -645,7 +666,7 @@ contains
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
   !! nodes for the links and their second fluid nodes.
   pure subroutine box(p, dom, i1, i2, j1, j2)
-    type(particle_t), intent(in) :: p
+    type(disk_t), intent(in) :: p
     type(domain_t), intent(in) :: dom
     integer, intent(out) :: i1, i2, j1, j2
     i1 = max(1, floor(p%x - p%r) - 2)
@@ -662,10 +683,11 @@ contains
     integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
-      call box(ps%p(k), dom, i1, i2, j1, j2)
+      call box(disk(ps%p, k), dom, i1, i2, j1, j2)
       do j = j1, j2
         do i = i1, i2
-          if (inside(ps%p(k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) id(i, j) = ps%p(k)%id
+          if (inside(disk(ps%p, k), i - 0.5_wp, dom%y0 + j - 0.5_wp)) &
+            id(i, j) = ps%p%id(k)
         end do
       end do
     end do

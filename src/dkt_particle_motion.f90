@@ -12,6 +12,7 @@ module dkt_particle_motion
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_near
   use dkt_particles, only: particles_t, particles_exchange
+  use dkt_particle_state, only: state_copy_first
   use dkt_particle_links, only: particles_refill
   implicit none
   private
@@ -36,21 +37,15 @@ contains
     integer :: k, s, m
     integer, allocatable :: near(:)
     h = 1.0_wp/ps%substeps
-    ! contiguous copies of the start-of-step centres, made once: a component array passed on
-    ! would be copied per call
-    xs = ps%p(1:ps%n)%x
-    ys = ps%p(1:ps%n)%y
-    rs = ps%p(1:ps%n)%r
+    ! the start-of-step centres, which the contacts take; the particle being moved puts its
+    ! present centre in its own place during its sub-steps
+    xs = ps%p%x(1:ps%n)
+    ys = ps%p%y(1:ps%n)
+    rs = ps%p%r(1:ps%n)
     ! contact partners (E10) lie within r_k + rmax + range of a centre
     call cells_build(ps%cells, xs, ys, 2.0_wp*ps%rmax + ps%range)
     if (moving) then
-      if (.not. allocated(ps%old)) allocate (ps%old(0))
-      if (size(ps%old) < ps%n) then
-        m = max(ps%n, 2*size(ps%old))
-        deallocate (ps%old)
-        allocate (ps%old(m))
-      end if
-      ps%old(1:ps%n) = ps%p(1:ps%n)
+      call state_copy_first(ps%old, ps%p, ps%n)
       ps%nold = ps%n
     end if
     do k = 1, ps%n
@@ -61,31 +56,31 @@ contains
       ! start, plus the most it moves in a step (run.particle_speed_limit <= 1). A candidate
       ! beyond the reach adds an exact zero (E10), so the sums are those of a query per sub-step
       call cells_near(ps%cells, xk, yk, rs(k) + ps%rmax + ps%range + 2.0_wp, near, m)
-      associate (p => ps%p(k))
+      associate (p => ps%p)
         do s = 1, ps%substeps
-          xs(k) = p%x
-          ys(k) = p%y
+          xs(k) = p%x(k)
+          ys(k) = p%y(k)
           call collision_force_on(k, xs, ys, rs, real(dom%nx, wp), real(dom%ny, wp), &
                                   end_walls, ps%stiffness, ps%stiffness_overlap, ps%range, &
-                                  p%cx, p%cy, near(1:m))
-          select case (p%motion)
+                                  p%cx(k), p%cy(k), near(1:m))
+          select case (p%motion(k))
           case (MOTION_FREE)
             ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
-            gy = -(p%density_ratio - 1.0_wp)*pi*p%r**2*ps%gravity
-            ax = (p%fx + p%cx)/p%mass
-            ay = (p%fy + p%cy + gy)/p%mass
+            gy = -(p%density_ratio(k) - 1.0_wp)*pi*p%r(k)**2*ps%gravity
+            ax = (p%fx(k) + p%cx(k))/p%mass(k)
+            ay = (p%fy(k) + p%cy(k) + gy)/p%mass(k)
             ! E8: X += U h + a h^2 / 2, U += a h, Omega += T/I h
-            p%x = p%x + p%u*h + 0.5_wp*ax*h*h
-            p%y = p%y + p%v*h + 0.5_wp*ay*h*h
-            p%u = p%u + ax*h
-            p%v = p%v + ay*h
-            p%omega = p%omega + p%torque/p%inertia*h
+            p%x(k) = p%x(k) + p%u(k)*h + 0.5_wp*ax*h*h
+            p%y(k) = p%y(k) + p%v(k)*h + 0.5_wp*ay*h*h
+            p%u(k) = p%u(k) + ax*h
+            p%v(k) = p%v(k) + ay*h
+            p%omega(k) = p%omega(k) + p%torque(k)/p%inertia(k)*h
           case (MOTION_PRESCRIBED)
-            p%x = p%x + p%u*h
-            p%y = p%y + p%v*h
+            p%x(k) = p%x(k) + p%u(k)*h
+            p%y(k) = p%y(k) + p%v(k)*h
           case (MOTION_FIXED)
           case default
-            call internal_error('particles_move: motion code '//itoa(p%motion))
+            call internal_error('particles_move: motion code '//itoa(p%motion(k)))
           end select
         end do
         xs(k) = xk

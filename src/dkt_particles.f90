@@ -27,6 +27,9 @@ module dkt_particles
   use dkt_cells, only: cells_t
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
+  use dkt_particle_state, only: particle_t, particle_state_t, NPACK, state_fit, state_put, &
+                                state_copy, state_copy_first, state_pack, state_unpack, &
+                                record_unpack, fit_int, fit_real
   implicit none
   private
   public :: particles_t, particle_t, inner_link_t, particles_init, particles_stable_substeps, &
@@ -36,22 +39,6 @@ module dkt_particles
             particles_messages, particles_work, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
             BB_HALFWAY, BB_YU, BB_BFL
 
-  !> One rigid disk, lattice units.
-  type :: particle_t
-    integer :: id = 0                 !! its number in the scene, 1..count
-    real(wp) :: x = 0, y = 0          !! centre
-    real(wp) :: r = 0                 !! radius
-    real(wp) :: u = 0, v = 0          !! velocity
-    real(wp) :: omega = 0             !! angular velocity (counter-clockwise)
-    real(wp) :: density_ratio = 1     !! rho_p / rho_f
-    real(wp) :: mass = 0, inertia = 0 !! M = rho_p pi r^2, I = M r^2 / 2 (per unit depth)
-    integer :: motion = MOTION_FREE
-    real(wp) :: fx = 0, fy = 0, torque = 0    !! hydrodynamic force and torque of the last step
-    real(wp) :: cx = 0, cy = 0                !! collision force of the last step
-  end type particle_t
-
-  !> The values a message carries per particle (pack_particle)
-  integer, parameter :: NPACK = 16
   !> per row-sum entry: particle id, global row, force x, y, torque
   integer, parameter :: NENTRY = 5
   integer, parameter :: TAG_DOWN = 42, TAG_UP = 43
@@ -69,8 +56,8 @@ module dkt_particles
   type :: particles_t
     integer :: n = 0                    !! particles held here: own ones and ghosts
     integer :: ntotal = 0               !! particles of the scene
-    type(particle_t), allocatable :: p(:)   !! the n held, ascending id (capacity >= n)
-    integer, allocatable :: home(:)     !! the rank that owns p(k)
+    type(particle_state_t) :: p         !! the n held, ascending id (capacity >= n)
+    integer, allocatable :: home(:)     !! the rank that owns disk k of p
     integer :: scheme = BB_YU
     logical :: galilean = .false.       !! E7 with (e - u_w) (Wen et al. 2014)
     real(wp) :: gravity = 0             !! g, lattice units, along -y
@@ -115,7 +102,7 @@ module dkt_particles
     real(wp), allocatable :: rho_below(:), rho_above(:) !! the same of halo rows 0, nyl+1
     ! the state before the move (refill), and the buffers of the messages, grown as needed
     integer :: nold = 0
-    type(particle_t), allocatable :: old(:), merged(:)
+    type(particle_state_t) :: old, merged
     real(wp), allocatable :: sdn(:), sup(:), rdn(:), rup(:)
     integer, allocatable :: mhome(:)
     !> MPI calls the particle messages made: to neighbours, and collectives
@@ -265,14 +252,14 @@ contains
   !> The rank that owns a particle: the one whose rows hold its centre (node row j covers
   !! y in [j - 1, j)); a centre that is not finite stays with `keep`. Every rank computes the
   !! same answer from the same state.
-  pure integer function owner_of(p, dom, keep) result(r)
-    type(particle_t), intent(in) :: p
+  pure integer function owner_of(y, dom, keep) result(r)
+    real(wp), intent(in) :: y !! the centre's height
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: keep
     integer :: jg, y0, nyl
     r = keep
-    if (.not. ieee_is_finite(p%y)) return
-    jg = int(min(max(p%y, 0.0_wp), real(dom%ny - 1, wp))) + 1
+    if (.not. ieee_is_finite(y)) return
+    jg = int(min(max(y, 0.0_wp), real(dom%ny - 1, wp))) + 1
     ! the even split of domain_rows_for: guess the rank, then step to the one that holds jg
     r = min(dom%nranks - 1, (jg - 1)*dom%nranks/max(dom%ny, 1))
     do
@@ -287,17 +274,17 @@ contains
     end do
   end function owner_of
 
-  !> Whether this slab (rows y0 + 1 .. y0 + nyl, y in [y0, y0 + nyl)) holds particle p: its disk
-  !! widened by marg overlaps the slab.
-  pure logical function held(ps, dom, p)
+  !> Whether this slab (rows y0 + 1 .. y0 + nyl, y in [y0, y0 + nyl)) holds a particle: its
+  !! disk (centre height y, radius r) widened by marg overlaps the slab.
+  pure logical function held(ps, dom, y, r)
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
-    type(particle_t), intent(in) :: p
+    real(wp), intent(in) :: y, r
     ! (a centre that is not finite is held by its owner alone; tested first: an ordered
     ! comparison with NaN traps in the checked build)
-    held = ieee_is_finite(p%y)
-    if (held) held = p%y + (p%r + ps%marg) > real(dom%y0, wp) .and. &
-                     p%y - (p%r + ps%marg) < real(dom%y0 + dom%nyl, wp)
+    held = ieee_is_finite(y)
+    if (held) held = y + (r + ps%marg) > real(dom%y0, wp) .and. &
+                     y - (r + ps%marg) < real(dom%y0 + dom%nyl, wp)
   end function held
 
   !> Keep of the whole scene `all` (ascending id) the particles this slab holds: its own and the
@@ -309,16 +296,16 @@ contains
     integer :: k, n
     n = 0
     do k = 1, size(all)
-      if (held(ps, dom, all(k)) .or. owner_of(all(k), dom, 0) == dom%rank) n = n + 1
+      if (held(ps, dom, all(k)%y, all(k)%r) .or. owner_of(all(k)%y, dom, 0) == dom%rank) n = n + 1
     end do
-    call fit_particles(ps%p, n)
+    call state_fit(ps%p, n)
     call fit_int(ps%home, n)
     n = 0
     do k = 1, size(all)
-      if (held(ps, dom, all(k)) .or. owner_of(all(k), dom, 0) == dom%rank) then
+      if (held(ps, dom, all(k)%y, all(k)%r) .or. owner_of(all(k)%y, dom, 0) == dom%rank) then
         n = n + 1
-        ps%p(n) = all(k)
-        ps%home(n) = owner_of(all(k), dom, 0)
+        call state_put(ps%p, n, all(k))
+        ps%home(n) = owner_of(all(k)%y, dom, 0)
       end if
     end do
     ps%n = n
@@ -341,22 +328,22 @@ contains
     nu = 0
     do k = 1, ps%n
       if (ps%home(k) /= dom%rank) cycle
-      if (.not. ieee_is_finite(ps%p(k)%y)) cycle
-      if (dom%below >= 0 .and. ps%p(k)%y - (ps%p(k)%r + ps%marg) < lo) then
+      if (.not. ieee_is_finite(ps%p%y(k))) cycle
+      if (dom%below >= 0 .and. ps%p%y(k) - (ps%p%r(k) + ps%marg) < lo) then
         call fit_real(ps%sdn, NPACK*(nd + 1))
-        call pack_particle(ps%p(k), ps%sdn(NPACK*nd + 1:NPACK*(nd + 1)))
+        call state_pack(ps%p, k, ps%sdn(NPACK*nd + 1:NPACK*(nd + 1)))
         nd = nd + 1
       end if
-      if (dom%above >= 0 .and. ps%p(k)%y + (ps%p(k)%r + ps%marg) > hi) then
+      if (dom%above >= 0 .and. ps%p%y(k) + (ps%p%r(k) + ps%marg) > hi) then
         call fit_real(ps%sup, NPACK*(nu + 1))
-        call pack_particle(ps%p(k), ps%sup(NPACK*nu + 1:NPACK*(nu + 1)))
+        call state_pack(ps%p, k, ps%sup(NPACK*nu + 1:NPACK*(nu + 1)))
         nu = nu + 1
       end if
     end do
     call swap(ps, dom, NPACK, nd, nu, md, mu)
     ! merge by id: the own particles this slab still holds, those from below, those from above
     ! (each list ascending; every particle is owned by one rank, so no id comes twice)
-    call fit_particles(ps%merged, ps%n + md + mu)
+    call state_fit(ps%merged, ps%n + md + mu)
     call fit_int(ps%mhome, ps%n + md + mu)
     n = 0
     a = 1
@@ -372,7 +359,7 @@ contains
       if (b <= md) then
         if (pick == 0) then
           pick = 2
-        else if (nint(ps%rdn(NPACK*(b - 1) + 1)) < ps%p(a)%id) then
+        else if (nint(ps%rdn(NPACK*(b - 1) + 1)) < ps%p%id(a)) then
           pick = 2
         end if
       end if
@@ -387,45 +374,45 @@ contains
       n = n + 1
       select case (pick)
       case (1)
-        ps%merged(n) = ps%p(a)
-        ps%mhome(n) = new_owner(ps%p(a), dom%rank)
+        call state_copy(ps%merged, n, ps%p, a)
+        ps%mhome(n) = new_owner(ps%p%y(a), dom%rank)
         a = a + 1
       case (2)
-        call unpack_particle(ps%rdn(NPACK*(b - 1) + 1:NPACK*b), ps%merged(n))
-        ps%mhome(n) = new_owner(ps%merged(n), dom%below)
+        call state_unpack(ps%rdn(NPACK*(b - 1) + 1:NPACK*b), ps%merged, n)
+        ps%mhome(n) = new_owner(ps%merged%y(n), dom%below)
         b = b + 1
       case default
-        call unpack_particle(ps%rup(NPACK*(c - 1) + 1:NPACK*c), ps%merged(n))
-        ps%mhome(n) = new_owner(ps%merged(n), dom%above)
+        call state_unpack(ps%rup(NPACK*(c - 1) + 1:NPACK*c), ps%merged, n)
+        ps%mhome(n) = new_owner(ps%merged%y(n), dom%above)
         c = c + 1
       end select
     end do
-    call fit_particles(ps%p, n)
+    call state_copy_first(ps%p, ps%merged, n)
     call fit_int(ps%home, n)
-    ps%p(1:n) = ps%merged(1:n)
     ps%home(1:n) = ps%mhome(1:n)
     ps%n = n
   contains
     !> Whether own particle a stays here: still within reach, or still owned here
     logical function held_or_own(a)
       integer, intent(in) :: a
-      held_or_own = held(ps, dom, ps%p(a)) .or. new_owner(ps%p(a), dom%rank) == dom%rank
+      held_or_own = held(ps, dom, ps%p%y(a), ps%p%r(a)) .or. &
+                    new_owner(ps%p%y(a), dom%rank) == dom%rank
     end function held_or_own
     !> The id at the head of list `which` (1: own, 2: from below)
     integer function id_of(which)
       integer, intent(in) :: which
       if (which == 1) then
-        id_of = ps%p(a)%id
+        id_of = ps%p%id(a)
       else
         id_of = nint(ps%rdn(NPACK*(b - 1) + 1))
       end if
     end function id_of
     !> The owner after the move of a particle owned by `was`: the slab that holds its centre
     !! if that is `was` or a neighbour of it, else still `was`
-    integer function new_owner(p, was)
-      type(particle_t), intent(in) :: p
+    integer function new_owner(y, was)
+      real(wp), intent(in) :: y !! the centre's height
       integer, intent(in) :: was
-      new_owner = owner_of(p, dom, was)
+      new_owner = owner_of(y, dom, was)
       if (abs(new_owner - was) > 1) new_owner = was
     end function new_owner
   end subroutine particles_exchange
@@ -445,18 +432,18 @@ contains
       if (ps%home(k) == dom%rank) cycle
       if (ps%rfirst(k) > ps%rlast(k)) cycle
       if (ps%home(k) /= dom%below .and. ps%home(k) /= dom%above) &
-        call internal_error('particles_reduce_forces: particle '//itoa(ps%p(k)%id)// &
+        call internal_error('particles_reduce_forces: particle '//itoa(ps%p%id(k))// &
                             ' held by rank '//itoa(dom%rank)//' is owned by rank '// &
                             itoa(ps%home(k))//', not a neighbour')
       do e = ps%rfirst(k), ps%rlast(k)
         if (ps%home(k) == dom%below) then
           call fit_real(ps%sdn, NENTRY*(nd + 1))
-          ps%sdn(NENTRY*nd + 1:NENTRY*(nd + 1)) = [real(ps%p(k)%id, wp), &
+          ps%sdn(NENTRY*nd + 1:NENTRY*(nd + 1)) = [real(ps%p%id(k), wp), &
                                                    real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
           nd = nd + 1
         else
           call fit_real(ps%sup, NENTRY*(nu + 1))
-          ps%sup(NENTRY*nu + 1:NENTRY*(nu + 1)) = [real(ps%p(k)%id, wp), &
+          ps%sup(NENTRY*nu + 1:NENTRY*(nu + 1)) = [real(ps%p%id(k), wp), &
                                                    real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
           nu = nu + 1
         end if
@@ -467,7 +454,7 @@ contains
     c = 1
     do k = 1, ps%n
       if (ps%home(k) /= dom%rank) cycle
-      id = ps%p(k)%id
+      id = ps%p%id(k)
       s = 0.0_wp
       ! the rows below this slab (ascending, as the slab below sends them), then its own
       do while (b <= md)
@@ -483,9 +470,9 @@ contains
         if (nint(ps%rup(NENTRY*(c - 1) + 1)) == id) s = s + ps%rup(NENTRY*(c - 1) + 3:NENTRY*c)
         c = c + 1
       end do
-      ps%p(k)%fx = s(1)
-      ps%p(k)%fy = s(2)
-      ps%p(k)%torque = s(3)
+      ps%p%fx(k) = s(1)
+      ps%p%fy(k) = s(2)
+      ps%p%torque(k) = s(3)
     end do
   end subroutine particles_reduce_forces
 
@@ -534,7 +521,7 @@ contains
     m = 0
     do k = 1, ps%n
       if (ps%home(k) /= dom%rank) cycle
-      call pack_particle(ps%p(k), mine(NPACK*m + 1:NPACK*(m + 1)))
+      call state_pack(ps%p, k, mine(NPACK*m + 1:NPACK*(m + 1)))
       m = m + 1
     end do
     call MPI_Allgather(NPACK*m, 1, MPI_INTEGER, counts, 1, MPI_INTEGER, dom%comm)
@@ -550,7 +537,7 @@ contains
     allocate (all(ps%ntotal))
     do k = 1, ps%ntotal
       m = nint(every(NPACK*(k - 1) + 1))
-      call unpack_particle(every(NPACK*(k - 1) + 1:NPACK*k), all(m))
+      call record_unpack(every(NPACK*(k - 1) + 1:NPACK*k), all(m))
     end do
   end subroutine particles_gather
 
@@ -621,11 +608,11 @@ contains
     integer :: k
     v = [huge(1.0_wp), 1.0_wp]
     do k = 1, ps%n
-      if (ps%home(k) /= dom%rank .or. ps%p(k)%motion /= MOTION_FREE) cycle
-      if (.not. ieee_is_finite(ps%p(k)%y)) then
+      if (ps%home(k) /= dom%rank .or. ps%p%motion(k) /= MOTION_FREE) cycle
+      if (.not. ieee_is_finite(ps%p%y(k))) then
         v(2) = 0.0_wp
       else
-        v(1) = min(v(1), ps%p(k)%y)
+        v(1) = min(v(1), ps%p%y(k))
       end if
     end do
     call MPI_Allreduce(MPI_IN_PLACE, v, 2, mpi_wp, MPI_MIN, dom%comm)
@@ -653,8 +640,8 @@ contains
     integer :: k
     id = huge(0)
     do k = 1, ps%n
-      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p(k)%y)) cycle
-      if (ps%p(k)%y + ps%p(k)%r > top) id = min(id, ps%p(k)%id)
+      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p%y(k))) cycle
+      if (ps%p%y(k) + ps%p%r(k) > top) id = min(id, ps%p%id(k))
     end do
   end function particles_first_above_own
 
@@ -676,56 +663,5 @@ contains
             real(ps%links_found, wp)/max(ps%searches, 1_i8), &
             real(ps%nodes_reset, wp)/max(ps%resets, 1_i8), real(ps%n, wp)]
   end function particles_work
-
-  pure subroutine pack_particle(p, v)
-    type(particle_t), intent(in) :: p
-    real(wp), intent(out) :: v(NPACK)
-    v = [real(p%id, wp), p%x, p%y, p%r, p%u, p%v, p%omega, p%density_ratio, p%mass, p%inertia, &
-         real(p%motion, wp), p%fx, p%fy, p%torque, p%cx, p%cy]
-  end subroutine pack_particle
-
-  pure subroutine unpack_particle(v, p)
-    real(wp), intent(in) :: v(NPACK)
-    type(particle_t), intent(out) :: p
-    p%id = nint(v(1)); p%x = v(2); p%y = v(3); p%r = v(4); p%u = v(5); p%v = v(6)
-    p%omega = v(7); p%density_ratio = v(8); p%mass = v(9); p%inertia = v(10)
-    p%motion = nint(v(11)); p%fx = v(12); p%fy = v(13); p%torque = v(14); p%cx = v(15)
-    p%cy = v(16)
-  end subroutine unpack_particle
-
-  !> Make a at least n long, keeping its values (twice as long when it grows: no allocation
-  !! in most steps)
-  subroutine fit_particles(a, n)
-    type(particle_t), allocatable, intent(inout) :: a(:)
-    integer, intent(in) :: n
-    type(particle_t), allocatable :: grown(:)
-    if (.not. allocated(a)) allocate (a(0))
-    if (size(a) >= n) return
-    allocate (grown(max(n, 2*size(a), 16)))
-    grown(1:size(a)) = a
-    call move_alloc(grown, a)
-  end subroutine fit_particles
-
-  subroutine fit_int(a, n)
-    integer, allocatable, intent(inout) :: a(:)
-    integer, intent(in) :: n
-    integer, allocatable :: grown(:)
-    if (.not. allocated(a)) allocate (a(0))
-    if (size(a) >= n) return
-    allocate (grown(max(n, 2*size(a), 16)))
-    grown(1:size(a)) = a
-    call move_alloc(grown, a)
-  end subroutine fit_int
-
-  subroutine fit_real(a, n)
-    real(wp), allocatable, intent(inout) :: a(:)
-    integer, intent(in) :: n
-    real(wp), allocatable :: grown(:)
-    if (.not. allocated(a)) allocate (a(0))
-    if (size(a) >= n) return
-    allocate (grown(max(n, 2*size(a), 64)))
-    grown(1:size(a)) = a
-    call move_alloc(grown, a)
-  end subroutine fit_real
 
 end module dkt_particles

@@ -441,46 +441,48 @@ contains
       if (sim%parts%home(k) /= sim%dom%rank) cycle
       what = ''
       advice = ''
-      associate (p => sim%parts%p(k))
+      associate (p => sim%parts%p)
         ! (first: an ordered comparison with NaN traps in the checked build)
-        if (.not. (ieee_is_finite(p%x) .and. ieee_is_finite(p%y))) then
+        if (.not. (ieee_is_finite(p%x(k)) .and. ieee_is_finite(p%y(k)))) then
           what = 'its centre is not a finite number (the flow or the particle state is not)'
-        else if (p%x < 0.0_wp .or. p%x > nx) then
+        else if (p%x(k) < 0.0_wp .or. p%x(k) > nx) then
           what = 'its centre left the channel through a side'
-        else if (p%y < 0.0_wp) then
+        else if (p%y(k) < 0.0_wp) then
           what = 'its centre passed the lower end'//trim(merge(' of the window', '              ', &
                                                                sim%window_on))
-        else if (p%y > ny) then
+        else if (p%y(k) > ny) then
           what = 'its centre passed the upper end'//trim(merge(' of the window', '              ', &
                                                                sim%window_on))
-        else if (p%motion == MOTION_PRESCRIBED) then
-          if (walls_x .and. (p%x < p%r .or. p%x > nx - p%r)) what = 'it reached a side wall'
-          if (wall_lo .and. p%y < p%r) what = 'it reached the lower end'
-          if (wall_hi .and. p%y > ny - p%r) what = 'it reached the upper end'
+        else if (p%motion(k) == MOTION_PRESCRIBED) then
+          if (walls_x .and. (p%x(k) < p%r(k) .or. p%x(k) > nx - p%r(k))) &
+            what = 'it reached a side wall'
+          if (wall_lo .and. p%y(k) < p%r(k)) what = 'it reached the lower end'
+          if (wall_hi .and. p%y(k) > ny - p%r(k)) what = 'it reached the upper end'
           do m = 1, sim%parts%n
             if (m == k) cycle
-            associate (q => sim%parts%p(m))
-              dist = hypot(p%x - q%x, p%y - q%y)
-              reach = p%r + q%r
-              if (q%motion == MOTION_FREE) reach = max(p%r, q%r)
-              if (dist < reach) what = 'it entered particle '//itoa(q%id)
+            associate (q => sim%parts%p)
+              dist = hypot(p%x(k) - q%x(m), p%y(k) - q%y(m))
+              reach = p%r(k) + q%r(m)
+              if (q%motion(m) == MOTION_FREE) reach = max(p%r(k), q%r(m))
+              if (dist < reach) what = 'it entered particle '//itoa(q%id(m))
             end associate
           end do
-        else if (p%motion == MOTION_FREE) then
-          if (open_lo .and. p%y - p%r < near) what = open_end('lower', sim%bc%lower)
-          if (open_hi .and. ny - p%y - p%r < near) what = open_end('upper', sim%bc%upper)
+        else if (p%motion(k) == MOTION_FREE) then
+          if (open_lo .and. p%y(k) - p%r(k) < near) what = open_end('lower', sim%bc%lower)
+          if (open_hi .and. ny - p%y(k) - p%r(k) < near) what = open_end('upper', sim%bc%upper)
           if (len(what) > 0) advice = 'Close that end (a ''wall'', or a ''velocity'' end '// &
                                       'with &inlet velocity = 0: E11 holds the particle '// &
                                       'there), make the channel longer (&domain height)'
         end if
         if (len(what) == 0) cycle
         if (len(advice) == 0) advice = 'Change its velocity or start (&particles u, v, x, y '// &
-                                       'of particle '//itoa(p%id)//')'
+                                       'of particle '//itoa(p%id(k))//')'
         y0 = 0.0_wp
         if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
         write (where, '(a,es12.5,a,es12.5,a,i0,a,es12.5,a)') ' at (x, y) = (', &
-          p%x*sim%lp%dx, ',', p%y*sim%lp%dx + y0, ') cm, step ', n, ' (t = ', n*sim%lp%dt, ' s)'
-        id = p%id
+          p%x(k)*sim%lp%dx, ',', p%y(k)*sim%lp%dx + y0, ') cm, step ', n, ' (t = ', &
+          n*sim%lp%dt, ' s)'
+        id = p%id(k)
       end associate
       failure = trim(sim%cfg%file)//': particle '//itoa(id)//' (motion = '// &
                 quoted_motion(sim%cfg%particles%motion(id))//'): '//what//trim(where)// &
@@ -556,11 +558,11 @@ contains
     if (sim%pair_on) then
       ! particles 1 and 2 from their owners (the held particles are in ascending id)
       do k = 1, sim%parts%n
-        if (sim%parts%p(k)%id > 2) exit
+        if (sim%parts%p%id(k) > 2) exit
         if (sim%parts%home(k) /= sim%dom%rank) cycle
-        associate (p => sim%parts%p(k))
-          m = S_PAIR + 3*(p%id - 1)
-          v(m:m + 2) = [p%x, p%y, p%r]
+        associate (p => sim%parts%p)
+          m = S_PAIR + 3*(p%id(k) - 1)
+          v(m:m + 2) = [p%x(k), p%y(k), p%r(k)]
           ! (a minimum with NaN depends on the order of the ranks: a flag carries it)
           if (.not. all(ieee_is_finite(v(m:m + 2)))) v(S_FINITE) = 0.0_wp
         end associate
@@ -604,12 +606,12 @@ contains
     if (sim%window_on) y0 = window_offset(sim%win, sim%lp%dx)
     do k = 1, sim%parts%n
       if (sim%parts%home(k) /= sim%dom%rank) cycle
-      associate (p => sim%parts%p(k))
-        fast = guard_particle_speed([p%u], [p%v], [p%x], [p%y], &
+      associate (p => sim%parts%p)
+        fast = guard_particle_speed([p%u(k)], [p%v(k)], [p%x(k)], [p%y(k)], &
                                     sim%cfg%run%particle_speed_limit, n, n*sim%lp%dt, &
-                                    sim%lp%dx, y0, id=p%id)
+                                    sim%lp%dx, y0, id=p%id(k))
         if (len(fast) > 0) then
-          id = p%id
+          id = p%id(k)
           exit
         end if
       end associate

@@ -72,7 +72,7 @@ contains
       if (lowest >= win%below - 1.0_wp) exit
       call shift_rows(dom, f)
       do k = 1, ps%n
-        ps%p(k)%y = ps%p(k)%y + 1.0_wp
+        ps%p%y(k) = ps%p%y(k) + 1.0_wp
       end do
       win%shift = win%shift + 1
     end do

@@ -43,9 +43,9 @@ program test_cells
   call search_all(want, want_inner)
 
   ! (links name the particles a slab holds by their place there; the table, by their number)
-  got = reshape([(ps%p(ps%lp(l))%id, ps%lx(l), ps%ly(l), ps%ld(l), merge(1, 0, ps%lff(l)), &
+  got = reshape([(ps%p%id(ps%lp(l)), ps%lx(l), ps%ly(l), ps%ld(l), merge(1, 0, ps%lff(l)), &
                   l=1, ps%nlinks)], [5, ps%nlinks])
-  got_inner = reshape([(ps%p(ps%inner(l)%k)%id, ps%inner(l)%i, ps%inner(l)%j, ps%inner(l)%d, &
+  got_inner = reshape([(ps%p%id(ps%inner(l)%k), ps%inner(l)%i, ps%inner(l)%j, ps%inner(l)%d, &
                         merge(1, 0, ps%inner(l)%ff), l=1, ps%ninner)], [5, ps%ninner])
   call check('cells: the boundary links of a search over every disk, in its order', &
              same(got, want), real(ps%nlinks - size(want, 2), wp))

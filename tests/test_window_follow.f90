@@ -54,7 +54,7 @@ contains
                         1.0_wp, 1)
     call window_follow(win, dom, ps, f)
     if (y1 >= 0.0_wp) then
-      call check(name, win%shift == rows .and. ps%p(1)%y == y1, real(win%shift, wp))
+      call check(name, win%shift == rows .and. ps%p%y(1) == y1, real(win%shift, wp))
     else
       call check(name, win%shift == rows, real(win%shift, wp))
     end if
