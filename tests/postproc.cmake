@@ -30,3 +30,7 @@ dkt_add_pytest(NAME postproc_paraview FILE tests/postproc/test_paraview_command.
 # directories on PATH an example scene on 2 ranks, dkt-gap, dkt-pattern and dkt-paraview.
 dkt_add_pytest(NAME install FILE tests/test_install.py LABELS postproc PROCESSORS 2 TIMEOUT 600
   ENV "DKT_BUILD_DIR=${CMAKE_BINARY_DIR}" "DKT_CMAKE=${CMAKE_COMMAND}")
+# Both render through xvfb-run when there is no display; Xvfb servers started at the same moment
+# on a loaded machine can refuse pvpython's connection (dkt-paraview tries again, up to three
+# times), so the two never run at once.
+set_tests_properties(postproc_paraview install PROPERTIES RESOURCE_LOCK xvfb)

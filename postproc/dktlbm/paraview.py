@@ -57,9 +57,10 @@ def sidecar(run: Path) -> Path:
     return xdmf
 
 
-def pvpython_command() -> list[str]:
+def pvpython_command(attempt: int = 0) -> list[str]:
     """pvpython, under `xvfb-run -a` when there is no display; RunFileError when either is
-    missing."""
+    missing. xvfb-run -a takes the first free server number from the one given, and two that
+    start together can take the same one: each process (and each attempt) starts from its own."""
     pvpython = shutil.which("pvpython")
     if pvpython is None:
         raise RunFileError("pvpython", "not found on PATH; install ParaView (Debian and "
@@ -71,7 +72,23 @@ def pvpython_command() -> list[str]:
         raise RunFileError("display", "none (DISPLAY is not set) and xvfb-run is not on PATH "
                            "to make one; install xvfb (apt install xvfb) or run from a "
                            "desktop session")
-    return [xvfb, "-a", pvpython]
+    first = 100 + (os.getpid() * 7 + attempt * 101) % 5000
+    return [xvfb, "-a", "-n", str(first), pvpython]
+
+
+def render(arguments: list[str]) -> int:
+    """Run the render script with `arguments`; a second and a third time under another virtual
+    display when xvfb-run's server was lost to another one that started at the same moment
+    (pvpython then reports a bad X server connection)."""
+    attempt = 0
+    while True:
+        command = [*pvpython_command(attempt), str(RENDER), *arguments]
+        proc = subprocess.run(command, stderr=subprocess.PIPE, text=True)
+        lost = command[0] != shutil.which("pvpython") and "bad X server connection" in proc.stderr
+        if proc.returncode == 0 or not lost or attempt == 2:
+            sys.stderr.write(proc.stderr)
+            return proc.returncode
+        attempt += 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -80,12 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         xdmf = sidecar(args.run)
         png = output_path(xdmf, "paraview", args.output)
-        command = [*pvpython_command(), str(RENDER), str(xdmf.resolve()),
-                   "--field", args.field, "--range", repr(args.range),
-                   "--size", str(args.size[0]), str(args.size[1]), "-o", str(png.resolve())]
+        arguments = [str(xdmf.resolve()), "--field", args.field, "--range", repr(args.range),
+                     "--size", str(args.size[0]), str(args.size[1]), "-o", str(png.resolve())]
         if args.time is not None:
-            command += ["--time", repr(args.time)]
-        return subprocess.run(command).returncode
+            arguments += ["--time", repr(args.time)]
+        return render(arguments)
 
     return guarded(body)
 
