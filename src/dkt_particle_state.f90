@@ -127,15 +127,15 @@ contains
          s%fy(k), s%torque(k), s%cx(k), s%cy(k)]
   end subroutine state_pack
 
-  !> Disk k of s from the NPACK numbers of a message (s is long enough).
+  !> Disk k of s from the NPACK numbers of a message (s is long enough): through the record,
+  !! so that record_unpack alone reads the message's order.
   pure subroutine state_unpack(v, s, k)
     real(wp), intent(in) :: v(NPACK)
     type(particle_state_t), intent(inout) :: s
     integer, intent(in) :: k
-    s%id(k) = nint(v(1)); s%x(k) = v(2); s%y(k) = v(3); s%r(k) = v(4); s%u(k) = v(5)
-    s%v(k) = v(6); s%omega(k) = v(7); s%density_ratio(k) = v(8); s%mass(k) = v(9)
-    s%inertia(k) = v(10); s%motion(k) = nint(v(11)); s%fx(k) = v(12); s%fy(k) = v(13)
-    s%torque(k) = v(14); s%cx(k) = v(15); s%cy(k) = v(16)
+    type(particle_t) :: p
+    call record_unpack(v, p)
+    call state_put(s, k, p)
   end subroutine state_unpack
 
   !> A record from the NPACK numbers of a message.

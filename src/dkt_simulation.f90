@@ -460,12 +460,10 @@ contains
           if (wall_hi .and. p%y(k) > ny - p%r(k)) what = 'it reached the upper end'
           do m = 1, sim%parts%n
             if (m == k) cycle
-            associate (q => sim%parts%p)
-              dist = hypot(p%x(k) - q%x(m), p%y(k) - q%y(m))
-              reach = p%r(k) + q%r(m)
-              if (q%motion(m) == MOTION_FREE) reach = max(p%r(k), q%r(m))
-              if (dist < reach) what = 'it entered particle '//itoa(q%id(m))
-            end associate
+            dist = hypot(p%x(k) - p%x(m), p%y(k) - p%y(m))
+            reach = p%r(k) + p%r(m)
+            if (p%motion(m) == MOTION_FREE) reach = max(p%r(k), p%r(m))
+            if (dist < reach) what = 'it entered particle '//itoa(p%id(m))
           end do
         else if (p%motion(k) == MOTION_FREE) then
           if (open_lo .and. p%y(k) - p%r(k) < near) what = open_end('lower', sim%bc%lower)

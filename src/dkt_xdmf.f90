@@ -17,7 +17,7 @@
 !> and a Glyph filter on it draws the disks at whatever time is shown.
 module dkt_xdmf
   use dkt_kinds, only: wp
-  use dkt_filesystem, only: rename_file
+  use dkt_filesystem, only: rename_file, remove_file, path_exists
   use dkt_text, only: itoa
   use dkt_errors, only: fatal_local
   implicit none
@@ -250,17 +250,11 @@ contains
       call fatal_local('cannot rename '''//tmp//''' to '''//path//'''')
   end subroutine write_text
 
-  !> Remove the file at `path` if it exists.
+  !> Remove the file at `path` if it exists; a stale file that stays is fatal.
   subroutine delete_file(path)
     character(len=*), intent(in) :: path
-    integer :: u, ios
-    logical :: exists
-
-    inquire (file=path, exist=exists)
-    if (.not. exists) return
-    open (newunit=u, file=path, status='old', iostat=ios)
-    if (ios == 0) close (u, status='delete', iostat=ios)
-    if (ios /= 0) call fatal_local('cannot remove the stale file '''//path//'''')
+    call remove_file(path)
+    if (path_exists(path)) call fatal_local('cannot remove the stale file '''//path//'''')
   end subroutine delete_file
 
   !> The grid of `n` disks stored in HDF5 group `h5` (escaped "file:/group"): points at their
