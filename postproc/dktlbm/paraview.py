@@ -82,9 +82,11 @@ def render(arguments: list[str]) -> int:
     (pvpython then reports a bad X server connection)."""
     attempt = 0
     while True:
-        command = [*pvpython_command(attempt), str(RENDER), *arguments]
-        proc = subprocess.run(command, stderr=subprocess.PIPE, text=True)
-        lost = command[0] != shutil.which("pvpython") and "bad X server connection" in proc.stderr
+        runner = pvpython_command(attempt)
+        proc = subprocess.run([*runner, str(RENDER), *arguments], stderr=subprocess.PIPE,
+                              text=True)
+        # under xvfb-run (more than pvpython alone), its display refused pvpython
+        lost = len(runner) > 1 and "bad X server connection" in proc.stderr
         if proc.returncode == 0 or not lost or attempt == 2:
             sys.stderr.write(proc.stderr)
             return proc.returncode
