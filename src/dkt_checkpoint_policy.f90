@@ -27,7 +27,7 @@ module dkt_checkpoint_policy
   private
   public :: checkpoint_state_t, checkpoint_start, checkpoint_due, checkpoint_finish, &
             checkpoint_final, checkpoint_stop_message, checkpoint_resume, &
-            checkpoint_interrupted, input_check_i, resume_rows
+            checkpoint_interrupted, input_check_i, resume_rows, checkpoint_poll
 
   integer, parameter :: SIGNAL_SHIFT = 3 !! the flag bits of the signals start after bit 2
 
@@ -56,6 +56,7 @@ module dkt_checkpoint_policy
   type :: checkpoint_state_t
     private
     integer :: flags_out = 0, flags_in = 0 !! buffers of the flag reduction in flight
+    integer :: flags = 0 !! the flags of the reduction completed for this step (checkpoint_poll)
     type(MPI_Request) :: request
     logical :: pending = .false.
     real(wp) :: t_start = 0.0_wp       !! wall time at the first step (run.wall_limit)
@@ -88,12 +89,9 @@ contains
     logical, intent(out) :: stop
     integer :: flags
     stop = .false.
-    flags = 0
-    if (state%pending) then
-      call MPI_Wait(state%request, MPI_STATUS_IGNORE)
-      flags = state%flags_in
-      state%pending = .false.
-    end if
+    call complete_flags(state)
+    flags = state%flags
+    state%flags = 0
     if (.not. last .and. (btest(flags, 0) .or. btest(flags, 2))) then
       call checkpoint_save(state, out, sim)
       state%interrupted = .true.
@@ -131,6 +129,32 @@ contains
                         sim%dom%comm, state%request)
     state%pending = .true.
   end subroutine checkpoint_due
+
+  !> Before checkpoint_due: whether it writes a checkpoint at this step (a signal, the wall
+  !! limit or run.checkpoint_wall that a rank saw by the step before, or run.checkpoint_every),
+  !! so that the caller completes the lattice first. Completes the flag reduction in flight.
+  subroutine checkpoint_poll(state, sim, last, writes)
+    type(checkpoint_state_t), intent(inout), asynchronous :: state
+    type(simulation_t), intent(in) :: sim
+    logical, intent(in) :: last
+    logical, intent(out) :: writes
+    call complete_flags(state)
+    writes = .false.
+    if (last) return
+    writes = btest(state%flags, 0) .or. btest(state%flags, 1) .or. btest(state%flags, 2)
+    if (sim%cfg%run%checkpoint_every > 0) &
+      writes = writes .or. mod(sim%step, sim%cfg%run%checkpoint_every) == 0
+  end subroutine checkpoint_poll
+
+  !> The flags every rank raised by the step before (state%flags), once their reduction is
+  !! complete; nothing when none is in flight.
+  subroutine complete_flags(state)
+    type(checkpoint_state_t), intent(inout), asynchronous :: state
+    if (.not. state%pending) return
+    call MPI_Wait(state%request, MPI_STATUS_IGNORE)
+    state%flags = state%flags_in
+    state%pending = .false.
+  end subroutine complete_flags
 
   !> After the loop: complete the flag reduction still in flight (a guard stop leaves the one
   !! of the step before).

@@ -30,7 +30,8 @@ module dkt_output
   public :: output_t, output_open, output_check_existing, output_check_dir, output_fields, &
             output_particles, output_pair_report, output_close, output_fail, output_final, &
             output_scheduled, output_mark_finished, output_initial, output_resume, output_free, &
-            output_set_stop_reason, output_flush, output_samples, output_run_id
+            output_set_stop_reason, output_flush, output_samples, output_run_id, &
+            output_reads_lattice
 
   !> the longest path (characters) of a file the run opens through MPI-IO: Open MPI 4.1.4
   !! aborts ("buffer overflow detected") from 245 on (docs/running.md); a margin below that
@@ -464,6 +465,14 @@ contains
       if (mod(n, sim%lp%series_every) == 0) call output_particles(out, sim, n)
     end if
   end subroutine output_scheduled
+
+  !> Whether output_scheduled writes the fields of step n, which read the lattice whole.
+  pure logical function output_reads_lattice(sim, n) result(reads)
+    type(simulation_t), intent(in) :: sim
+    integer, intent(in) :: n
+    reads = .false.
+    if (sim%lp%field_every > 0) reads = mod(n, sim%lp%field_every) == 0
+  end function output_reads_lattice
 
   !> The marker <name>.finished holding the last step, for batch scripts that wait for it.
   !! Written after the output is closed: a run whose marker is there has its output complete.

@@ -3,8 +3,9 @@
 !> (E7, and the Galilean-invariant variant) summed per particle and row, the nodes inside the
 !> disks and those a moving disk uncovers.
 !>
-!> Interior nodes (coupling.interior): 'solid', they are not fluid: after each sweep they hold
-!> the equilibrium at the local particle velocity, and a node the particle uncovers is refilled
+!> Interior nodes (coupling.interior): 'solid', they are not fluid: after a sweep they hold
+!> the equilibrium at the local particle velocity (written when the lattice is read:
+!> particles_interior_after_move), and a node the particle uncovers is refilled
 !> with the equilibrium at the wall velocity and the mean density of its fluid neighbours.
 !> 'fluid', they hold fluid that streams and collides like the rest, bounced back from the inside
 !> of the surface on the interior links; nothing is reset or refilled.
@@ -30,7 +31,8 @@ module dkt_particle_links
   implicit none
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
-            particles_inner_write, particles_solid_field, particles_refill
+            particles_inner_write, particles_solid_field, particles_refill, &
+            particles_interior_after_move
 
   !> 1/|e_d|^2 of the moving directions: 1 along the axes, 1/2 (exact) along the diagonals
   real(wp), parameter :: inv_e2(1:8) = 1.0_wp/real(ex(1:8)**2 + ey(1:8)**2, wp)
@@ -511,13 +513,42 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
+    call reset_disks(ps%p, ps%n, dom, f, ps%nodes_reset)
+    ps%resets = ps%resets + 1
+  end subroutine particles_interior
+
+  !> particles_interior of the last step, done after its move and refill: the disks held before
+  !! the move (ps%old) and their velocities then, as particles_interior took them, but not the
+  !! nodes the refill rewrote (inside an old disk and outside every new one, no longer in the
+  !! mask). The lattice is then what particles_interior before the move and the refill after
+  !! it leave. No fluid node and no link reads an interior node (a fluid node pulls from a solid
+  !! one only through a link, whose bounce-back overwrites the slot first; the refill and the
+  !! density sums read fluid nodes only), so a step needs this only when the lattice is read
+  !! whole: for output, a guard, a checkpoint (docs/performance.md).
+  subroutine particles_interior_after_move(ps, dom, f)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    call place_for_nodes(ps, dom)
+    call reset_disks(ps%old, ps%nold, dom, f, ps%nodes_reset, ps%solid)
+    ps%resets = ps%resets + 1
+  end subroutine particles_interior_after_move
+
+  !> The equilibrium at density 1 and the rigid-body velocity of disk k of s at every node
+  !! inside it, disk after disk (the later disk's where two overlap); with `solid` only at the
+  !! nodes it marks. `nodes` counts the nodes written.
+  subroutine reset_disks(s, n, dom, f, nodes, solid)
+    type(particle_state_t), intent(in) :: s
+    integer, intent(in) :: n
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    integer(i8), intent(inout) :: nodes
+    logical, intent(in), optional :: solid(1:, 0:)
     integer :: k, i, j, jg, i1, i2, j1, j2
-    integer(i8) :: nodes
     real(wp) :: px, py, ux, uy
     type(disk_t) :: pk
-    nodes = 0
-    do k = 1, ps%n
-      pk = disk(ps%p, k)
+    do k = 1, n
+      pk = disk(s, k)
       call box(pk, dom, i1, i2, j1, j2)
       do j = j1, j2
         jg = dom%y0 + j
@@ -525,15 +556,16 @@ contains
           px = i - 0.5_wp
           py = jg - 0.5_wp
           if (.not. inside(pk, px, py)) cycle
+          if (present(solid)) then
+            if (.not. solid(i, j)) cycle
+          end if
           call surface_velocity(pk, px, py, ux, uy)
           call lattice_set_node(f, i, j, equilibrium(1.0_wp, ux, uy))
           nodes = nodes + 1
         end do
       end do
     end do
-    ps%resets = ps%resets + 1
-    ps%nodes_reset = ps%nodes_reset + nodes
-  end subroutine particles_interior
+  end subroutine reset_disks
 
   !> Nodes inside a particle's old disk (ps%old, the disks held before the move) and outside
   !! every new one become fluid: equilibrium at the wall velocity there with the mean density of

@@ -13,16 +13,18 @@ module dkt_run
   use dkt_text, only: itoa
   use dkt_timers, only: timer_reset, timer_start, timer_stop, PART_GUARDS, PART_OUTPUT, &
                         PART_CHECKPOINTS
-  use dkt_simulation, only: simulation_t, simulation_setup, simulation_step, simulation_finish
+  use dkt_simulation, only: simulation_t, simulation_setup, simulation_step, simulation_finish, &
+                            simulation_settle
   use dkt_output, only: output_t, output_open, output_check_dir, output_check_existing, &
                         output_initial, output_scheduled, output_final, output_close, &
-                        output_mark_finished, output_free, output_set_stop_reason
+                        output_mark_finished, output_free, output_set_stop_reason, &
+                        output_reads_lattice
   use dkt_report, only: progress_t, report_summary, report_start, report_progress, &
                         report_performance
   use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_resume, checkpoint_start, &
-                                   checkpoint_due, checkpoint_finish, checkpoint_final, &
-                                   checkpoint_stop_message, checkpoint_interrupted, input_check_i, &
-                                   resume_rows
+                                   checkpoint_poll, checkpoint_due, checkpoint_finish, &
+                                   checkpoint_final, checkpoint_stop_message, &
+                                   checkpoint_interrupted, input_check_i, resume_rows
   implicit none
   private
   public :: run_t, run_setup, run_execute, run_finish
@@ -72,7 +74,7 @@ contains
     type(progress_t) :: prog
     integer :: n
     real(wp) :: t, mach, y0
-    logical :: last, stop
+    logical :: last, stop, writes
     character(len=:), allocatable :: failure, placed, fast
 
     associate (sim => run%sim, out => run%out, chk => run%chk, lp => run%sim%lp, &
@@ -104,8 +106,11 @@ contains
         ! to give.
         ! the particle speed guard is cheap (one test per particle), so it runs every step
         ! (simulation_step, with the place check; '' when a particle is out of place)
-        call timer_start(PART_GUARDS)
         fast = sim%fast
+        ! the guards, the progress line and the fields read the lattice whole: the step's
+        ! interior nodes first (simulation_settle)
+        if (reads_lattice()) call simulation_settle(sim)
+        call timer_start(PART_GUARDS)
         if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
             last) then
           placed = failure
@@ -135,11 +140,17 @@ contains
         end if
         call timer_stop(PART_GUARDS)
         call timer_start(PART_CHECKPOINTS)
+        call checkpoint_poll(chk, sim, last, writes)
+        call timer_stop(PART_CHECKPOINTS)
+        if (writes) call simulation_settle(sim)
+        call timer_start(PART_CHECKPOINTS)
         call checkpoint_due(chk, out, sim, last, stop)
         call timer_stop(PART_CHECKPOINTS)
         if (stop .or. last) exit
       end do
       call checkpoint_finish(chk)
+      ! whatever ended the loop, what follows writes the lattice of this step
+      call simulation_settle(sim)
       n = sim%step
       if (len(failure) > 0) then
         ! every rank saw the same failure: write the last step's state (what went wrong is
@@ -171,6 +182,18 @@ contains
       call output_close(out, sim)
       call output_mark_finished(sim)
     end associate
+  contains
+    !> Whether the guards, the progress line or the scheduled fields read the lattice after
+    !! step n (as the loop decides each of them below).
+    logical function reads_lattice()
+      associate (cfg => run%sim%cfg)
+        reads_lattice = len(failure) > 0 .or. len(fast) > 0 .or. &
+                        mod(n, cfg%run%guard_every) == 0 .or. last
+        if (cfg%run%progress_every > 0) &
+          reads_lattice = reads_lattice .or. mod(n, cfg%run%progress_every) == 0
+        reads_lattice = reads_lattice .or. output_reads_lattice(run%sim, n)
+      end associate
+    end function reads_lattice
   end subroutine run_execute
 
   !> Close what is still open and free the lattices and the slab.

@@ -45,6 +45,9 @@ module dkt_run_state
     !! speed the progress and performance lines report
     integer(i8) :: updates = 0
     character(len=:), allocatable :: stopped_early !! why the run ended before its last step
+    !> the interior nodes of the disks have not been reset after the last step (nothing in a
+    !! step reads them): simulation_settle resets them before anything reads the lattice
+    logical :: interior_due = .false.
   end type simulation_t
 
 end module dkt_run_state

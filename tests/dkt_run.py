@@ -80,6 +80,21 @@ def last_fields(h5file: Path) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     return fields, attrs
 
 
+def all_datasets(h5file: Path) -> dict[str, np.ndarray]:
+    """Every dataset of an HDF5 file, by its path."""
+    import h5py
+
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(h5file, "r") as h5:
+
+        def take(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                out[name] = obj[()]
+
+        h5.visititems(take)
+    return out
+
+
 def run_attr(h5file: Path, name: str) -> float:
     import h5py
 

@@ -22,6 +22,11 @@ dkt_add_pytest(NAME interior FILE tests/test_interior.py LABELS regression mpi P
   TIMEOUT 600 ARGS -k "not barely_denser")
 dkt_add_pytest(NAME interior_density_ratio FILE tests/test_interior.py LABELS regression long
   PROCESSORS 2 TIMEOUT 900 ARGS -k "barely_denser")
+# solid interiors reset only when the lattice is read: fields every 7 steps on 2 and 3 ranks and
+# a checkpoint off their schedule, resumed on another rank count, against runs that read the
+# lattice after every step (the 504-disk box, 36 steps; seconds)
+dkt_add_pytest(NAME interior_deferred FILE tests/test_interior_deferred.py LABELS regression mpi
+  PROCESSORS 3 TIMEOUT 600)
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
 # the link search through the cell list against a search over every disk, on 1 rank and across
 # an uneven split of 3 ranks (90 rows)

@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dkt_run import INPUT, run, run_args, sigterm_when_logged
+from dkt_run import INPUT, all_datasets, run, run_args, sigterm_when_logged
 
 STEPS = 1200
 SETS = [
@@ -27,18 +27,6 @@ SETS = [
     "output.series_interval=0.01",
     "output.field_interval=0.1",
 ]
-
-
-def datasets(h5file: Path) -> dict[str, np.ndarray]:
-    out: dict[str, np.ndarray] = {}
-    with h5py.File(h5file, "r") as h5:
-
-        def take(name: str, obj: object) -> None:
-            if isinstance(obj, h5py.Dataset):
-                out[name] = obj[()]
-
-        h5.visititems(take)
-    return out
 
 
 def diagnostics_attrs(h5file: Path) -> dict[str, object]:
@@ -53,7 +41,7 @@ LONG_SETS = [*SETS, f"run.steps={LONG}", "output.field_interval=0.5"]
 def assert_same_output(a: Path, b: Path) -> None:
     """Every dataset, the /diagnostics attributes, the CSV and the XDMF sidecars of two output
     dirs."""
-    da, db = datasets(a / "case0.h5"), datasets(b / "case0.h5")
+    da, db = all_datasets(a / "case0.h5"), all_datasets(b / "case0.h5")
     assert sorted(da) == sorted(db), set(da) ^ set(db)
     differ = [k for k in da if not np.array_equal(da[k], db[k], equal_nan=True)]
     assert not differ, f"datasets differ: {differ}"
@@ -206,7 +194,7 @@ def test_a_run_file_short_of_the_checkpoints_samples_is_refused_and_left_alone(
         shutil.copytree(tmp_path / "run", out)
         with h5py.File(out / "case0.h5", "r+") as h5:
             harm(h5)
-        before = datasets(out / "case0.h5")
+        before = all_datasets(out / "case0.h5")
         args = [str(INPUT / "case0.nml")]
         for s in [*sets, f"output.dir={out}"]:
             args += ["--set", s]
@@ -216,7 +204,7 @@ def test_a_run_file_short_of_the_checkpoints_samples_is_refused_and_left_alone(
         message = proc.stderr
         assert expected in message and str(out / "case0.h5") in message, message
         assert "the checkpoint counts 101 samples" in message, message
-        after = datasets(out / "case0.h5")
+        after = all_datasets(out / "case0.h5")
         assert after.keys() == before.keys()
         assert all(np.array_equal(after[n], before[n], equal_nan=True) for n in before)
 
