@@ -14,7 +14,7 @@ module dkt_cells
   use dkt_kinds, only: wp
   implicit none
   private
-  public :: cells_t, cells_build, cells_near, cells_box
+  public :: cells_t, cells_build, cells_near, cells_candidates, cells_box
 
   !> The largest |coordinate| a centre or a query point may have to be placed in a cell.
   real(wp), parameter :: FAR = 1.0e100_wp
@@ -32,24 +32,35 @@ module dkt_cells
 contains
 
   !> Place the centres (x, y) in cells of side at least side_min (wider when the centres are so
-  !! spread that there would be more than about 4 cells a disk): O(n) time and memory.
+  !! spread that there would be more than about 4 cells a disk): O(n) time and memory. The
+  !! arrays of c are kept from one build to the next while their sizes stay.
   pure subroutine cells_build(c, x, y, side_min)
     type(cells_t), intent(inout) :: c
     real(wp), intent(in) :: x(:), y(:)  !! centres
     real(wp), intent(in) :: side_min    !! the smallest side of a cell
     logical :: placed(size(x))
-    integer :: k, cell(size(x))
+    integer :: k, nplaced, cell(size(x))
     real(wp) :: xmax, ymax
     c%n = size(x)
-    placed = near_origin(x) .and. near_origin(y)
-    c%stray = pack([(k, k=1, c%n)],.not. placed)
+    ! the corner and the far end of the placed centres: the first placed centre, then each
+    ! smaller (larger) one, as minval and maxval take them
     c%x0 = 0; c%y0 = 0; xmax = 0; ymax = 0
-    if (any(placed)) then
-      c%x0 = minval(x, mask=placed)
-      c%y0 = minval(y, mask=placed)
-      xmax = maxval(x, mask=placed)
-      ymax = maxval(y, mask=placed)
-    end if
+    nplaced = 0
+    do k = 1, c%n
+      placed(k) = near_origin(x(k)) .and. near_origin(y(k))
+      if (.not. placed(k)) cycle
+      nplaced = nplaced + 1
+      if (nplaced == 1) then
+        c%x0 = x(k); c%y0 = y(k); xmax = x(k); ymax = y(k)
+      else
+        if (x(k) < c%x0) c%x0 = x(k)
+        if (y(k) < c%y0) c%y0 = y(k)
+        if (x(k) > xmax) xmax = x(k)
+        if (y(k) > ymax) ymax = y(k)
+      end if
+    end do
+    call fit(c%stray, c%n - nplaced)
+    if (nplaced < c%n) c%stray = pack([(k, k=1, c%n)],.not. placed)
     c%side = side_min
     if (.not. (c%side > 0.0_wp .and. c%side <= FAR)) c%side = 1.0_wp
     do while (((xmax - c%x0)/c%side + 1.0_wp)*((ymax - c%y0)/c%side + 1.0_wp) > 4.0_wp*c%n + 16)
@@ -58,8 +69,7 @@ contains
     c%nx = int((xmax - c%x0)/c%side) + 1
     c%ny = int((ymax - c%y0)/c%side) + 1
     ! counting sort by cell; taking the disks in index order keeps each cell ascending
-    if (allocated(c%start)) deallocate (c%start)
-    allocate (c%start(c%nx*c%ny + 1))
+    call fit(c%start, c%nx*c%ny + 1)
     c%start = 0
     do k = 1, c%n
       if (.not. placed(k)) cycle
@@ -70,16 +80,28 @@ contains
     do k = 2, size(c%start)
       c%start(k) = c%start(k) + c%start(k - 1)
     end do
-    if (allocated(c%items)) deallocate (c%items)
-    allocate (c%items(count(placed)))
+    call fit(c%items, nplaced)
     do k = 1, c%n
       if (.not. placed(k)) cycle
       c%items(c%start(cell(k))) = k
       c%start(cell(k)) = c%start(cell(k)) + 1
     end do
     ! each start now points at the next cell's first disk: shift back by one cell
-    c%start(2:) = c%start(1:size(c%start) - 1)
+    do k = size(c%start), 2, -1
+      c%start(k) = c%start(k - 1)
+    end do
     c%start(1) = 1
+  contains
+    !> Make a exactly n long (its values are set after).
+    pure subroutine fit(a, n)
+      integer, allocatable, intent(inout) :: a(:)
+      integer, intent(in) :: n
+      if (allocated(a)) then
+        if (size(a) == n) return
+        deallocate (a)
+      end if
+      allocate (a(n))
+    end subroutine fit
   end subroutine cells_build
 
   !> The disks whose centres may lie within reach of (px, py): near(1:m), ascending, every disk
@@ -89,57 +111,52 @@ contains
     real(wp), intent(in) :: px, py, reach
     integer, allocatable, intent(inout) :: near(:) !! grown as needed
     integer, intent(out) :: m
-    integer :: i1, i2, j1, j2, k
+    integer :: k, l, a
+    call cells_candidates(c, px, py, reach, near, m)
+    ! insertion sort: the lists are short (the disks of a few cells)
+    do l = 2, m
+      a = near(l)
+      k = l - 1
+      do while (k >= 1)
+        if (near(k) < a) exit
+        near(k + 1) = near(k)
+        k = k - 1
+      end do
+      near(k + 1) = a
+    end do
+  end subroutine cells_near
+
+  !> The disks of cells_near in no particular order (the cells' ones row of cells by row of
+  !! cells, then the stray disks), each once: for a caller that keeps a few of them.
+  subroutine cells_candidates(c, px, py, reach, near, m)
+    type(cells_t), intent(in) :: c
+    real(wp), intent(in) :: px, py, reach
+    integer, allocatable, intent(inout) :: near(:) !! grown as needed
+    integer, intent(out) :: m
+    integer :: i1, i2, j1, j2, j, k, l, first, last
     call cells_box(c, px, py, reach, i1, i2, j1, j2)
     if (i1 == 0) then
       call fit(c%n)
       near(1:c%n) = [(k, k=1, c%n)]
       m = c%n
-    else
-      call merge((i2 - i1 + 1)*(j2 - j1 + 1) + 1)
+      return
     end if
+    ! the cells i1..i2 of a row of cells are one run of items: the runs of the rows j1..j2 and
+    ! the stray disks, one after the other (each disk is in one cell or stray)
+    m = size(c%stray)
+    do j = j1, j2
+      m = m + c%start(i2 + 1 + c%nx*(j - 1)) - c%start(i1 + c%nx*(j - 1))
+    end do
+    call fit(m)
+    l = 0
+    do j = j1, j2
+      first = c%start(i1 + c%nx*(j - 1))
+      last = c%start(i2 + 1 + c%nx*(j - 1)) - 1
+      near(l + 1:l + last - first + 1) = c%items(first:last)
+      l = l + last - first + 1
+    end do
+    near(l + 1:m) = c%stray
   contains
-    !> Merge the ascending lists of the cells i1..i2 x j1..j2 and the stray disks (the last list).
-    subroutine merge(lists)
-      integer, intent(in) :: lists
-      integer :: head(lists), tail(lists), i, j, l, pick
-      l = 0
-      do j = j1, j2
-        do i = i1, i2
-          l = l + 1
-          head(l) = c%start(i + c%nx*(j - 1))
-          tail(l) = c%start(i + c%nx*(j - 1) + 1)
-        end do
-      end do
-      head(lists) = 1
-      tail(lists) = size(c%stray) + 1
-      call fit(sum(tail - head))
-      m = 0
-      do
-        pick = 0
-        do l = 1, lists
-          if (head(l) >= tail(l)) cycle
-          if (pick == 0) then
-            pick = l
-          else if (item(l, head(l), lists) < item(pick, head(pick), lists)) then
-            pick = l
-          end if
-        end do
-        if (pick == 0) exit
-        m = m + 1
-        near(m) = item(pick, head(pick), lists)
-        head(pick) = head(pick) + 1
-      end do
-    end subroutine merge
-    !> Entry h of list l: of the cells' items, or of the stray disks for the last list.
-    pure integer function item(l, h, lists)
-      integer, intent(in) :: l, h, lists
-      if (l == lists) then
-        item = c%stray(h)
-      else
-        item = c%items(h)
-      end if
-    end function item
     subroutine fit(size_needed)
       integer, intent(in) :: size_needed
       if (allocated(near)) then
@@ -148,7 +165,7 @@ contains
       end if
       allocate (near(max(64, 2*size_needed)))
     end subroutine fit
-  end subroutine cells_near
+  end subroutine cells_candidates
 
   !> The cells i1..i2 across and j1..j2 along that hold every centre within reach of (px, py),
   !! with a relative margin for rounding; i1 = 0 when the point or the reach is too large or not

@@ -3,10 +3,14 @@
 !> longer resolve the lubrication film. Lattice units; a pair further apart than the sum of the
 !> radii plus the range costs one distance test.
 module dkt_collisions
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp
   implicit none
   private
-  public :: collision_forces, collision_force_on, repel
+  public :: collision_forces, collision_force_on, collision_partners, repel
+
+  !> The largest |coordinate| of a centre that collision_partners may leave out of a list.
+  real(wp), parameter :: FAR = 1.0e100_wp
 
 contains
 
@@ -34,8 +38,8 @@ contains
       end do
       ! E11: the mirror particle X' across each wall, 2 R in place of R_i + R_j, stiffness
       ! halved
-      call add_wall_forces(x(a), y(a), r(a), width, height, end_walls, eps, eps_overlap, &
-                           range, cx(a), cy(a))
+      call add_wall_forces(x(a), y(a), r(a), width, height, [.true., .true., end_walls], eps, &
+                           eps_overlap, range, cx(a), cy(a))
     end do
   end subroutine collision_forces
 
@@ -45,9 +49,11 @@ contains
   !! With near (ascending indices; k may be among them), only the pairs of k with the particles
   !! listed are summed, in the same order: the same bits when near holds every particle within
   !! the range of k, because a pair beyond the range adds a zero to a sum that starts at +0 and
-  !! so is never -0 (in round-to-nearest x + (+-0) = x for x /= -0).
+  !! so is never -0 (in round-to-nearest x + (+-0) = x for x /= -0). With walls, only the walls
+  !! it names are taken, in the same order: the same bits when each wall left out is beyond the
+  !! range of k (collision_partners finds both lists).
   pure subroutine collision_force_on(k, x, y, r, width, height, end_walls, eps, eps_overlap, &
-                                     range, fx, fy, near)
+                                     range, fx, fy, near, walls)
     integer, intent(in) :: k                    !! the particle
     real(wp), intent(in) :: x(:), y(:), r(:)    !! centres and radii
     real(wp), intent(in) :: width, height       !! channel size
@@ -56,6 +62,9 @@ contains
     real(wp), intent(in) :: range               !! threshold xi of E10
     real(wp), intent(out) :: fx, fy             !! force on particle k
     integer, intent(in), optional :: near(:)    !! the candidates, ascending (default: all)
+    !> the walls to take: the sides x = 0, x = width, the ends y = 0, y = height (default: the
+    !! sides and the ends that are walls)
+    logical, intent(in), optional :: walls(4)
     integer :: a, m
     fx = 0.0_wp
     fy = 0.0_wp
@@ -68,8 +77,13 @@ contains
         call add_pair(a, fx, fy)
       end do
     end if
-    call add_wall_forces(x(k), y(k), r(k), width, height, end_walls, eps, eps_overlap, range, &
-                         fx, fy)
+    if (present(walls)) then
+      call add_wall_forces(x(k), y(k), r(k), width, height, walls, eps, eps_overlap, range, &
+                           fx, fy)
+    else
+      call add_wall_forces(x(k), y(k), r(k), width, height, [.true., .true., end_walls], eps, &
+                           eps_overlap, range, fx, fy)
+    end if
   contains
     !> The force of particle a on k, with the arguments of repel in the order collision_forces
     !! gives them (the lower index first).
@@ -91,31 +105,135 @@ contains
 
   !> Add to (fx, fy) the force of each wall on the disk at (x, y) of radius r, one wall after
   !! the other (E11: the mirror disk, half the stiffness): the sides, then the lower end and the
-  !! upper end, each only when it is a wall. The order of the sums is the same whichever ends
-  !! are walls, so a scene with both ends walls keeps its bits.
-  pure subroutine add_wall_forces(x, y, r, width, height, end_walls, eps, eps_overlap, range, &
-                                  fx, fy)
+  !! upper end, each only when it is taken (an end only when it is a wall). The order of the sums
+  !! is the same whichever walls are taken, so a scene with both ends walls keeps its bits.
+  pure subroutine add_wall_forces(x, y, r, width, height, walls, eps, eps_overlap, range, fx, fy)
     real(wp), intent(in) :: x, y, r, width, height, eps, eps_overlap, range
-    logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall
+    logical, intent(in) :: walls(4) !! take the side x = 0, x = width, the end y = 0, y = height
     real(wp), intent(inout) :: fx, fy
     real(wp) :: gx, gy, mx, my
     integer :: m
     do m = 1, 4
+      if (.not. walls(m)) cycle
       select case (m)
       case (1); mx = -x; my = y
       case (2); mx = 2.0_wp*width - x; my = y
-      case (3)
-        if (.not. end_walls(1)) cycle
-        mx = x; my = -y
-      case default
-        if (.not. end_walls(2)) cycle
-        mx = x; my = 2.0_wp*height - y
+      case (3); mx = x; my = -y
+      case default; mx = x; my = 2.0_wp*height - y
       end select
+      ! a wall beyond the range adds an exact zero (apart): most disks are far from every wall
+      if (apart(x - mx, y - my, 2.0_wp*r + range)) cycle
       call repel(x, y, mx, my, 2.0_wp*r, 0.5_wp*eps, 0.5_wp*eps_overlap, range, gx, gy)
       fx = fx + gx
       fy = fy + gy
     end do
   end subroutine add_wall_forces
+
+  !> Whether repel gives an exact zero force (+-0 in each component) for two centres dx, dy
+  !! apart (x_a - x_b, y_a - y_b as repel takes them) whose radii and range add to lim
+  !! (rsum + range, as repel adds them): true when dx and dy are finite and one of them is
+  !! beyond lim (and not so small that its square underflows). The rounded square root of a
+  !! rounded square is the number itself, and adding a square only makes the sum larger, so
+  !! the distance of repel is then beyond lim too: c = 0 and (dx c, dy c) = +-0. Added to a
+  !! sum that starts at +0, +-0 changes no bit: the sum is never -0 (in round-to-nearest
+  !! x + y = -0 only for x = y = -0), and x + (+-0) = x for every other x.
+  pure logical function apart(dx, dy, lim)
+    real(wp), intent(in) :: dx, dy, lim
+    real(wp) :: far
+    apart = .false.
+    ! (finite first: an ordered comparison with NaN traps in the checked build)
+    if (.not. (ieee_is_finite(dx) .and. ieee_is_finite(dy) .and. ieee_is_finite(lim))) return
+    far = max(abs(dx), abs(dy))
+    apart = far > lim .and. far > 1.0e-100_wp
+  end function apart
+
+  !> The partners of particle k among its candidates near (cells_near's, in any order) that may
+  !! push it (E10) while its centre stays within drift of (x(k), y(k)), the others where they
+  !! are: part(1:np), ascending; and the walls that may (walls, as collision_force_on takes them).
+  !! A candidate left out is one whose centre is finite, within FAR of the origin as the centre
+  !! of k is, and farther from (x(k), y(k)) than the sum of the radii plus the range plus drift,
+  !! with a relative margin far above rounding; a wall left out is one whose mirror disk is as
+  !! far. Its force on k at any centre within drift is then an exact zero (apart), which adds
+  !! nothing to the sum of collision_force_on. So collision_force_on with part and walls has
+  !! the bits of that with every candidate in ascending order and every wall, for every centre
+  !! of k within drift of the start; k itself is left out too (it adds nothing).
+  pure subroutine collision_partners(k, x, y, r, width, height, end_walls, range, drift, near, &
+                                     part, np, walls)
+    integer, intent(in) :: k                    !! the particle
+    real(wp), intent(in) :: x(:), y(:), r(:)    !! centres (of k: at the start) and radii
+    real(wp), intent(in) :: width, height       !! channel size
+    logical, intent(in) :: end_walls(2)         !! the lower, the upper end is a wall
+    real(wp), intent(in) :: range               !! threshold xi of E10
+    real(wp), intent(in) :: drift               !! the farthest k moves from (x(k), y(k))
+    integer, intent(in) :: near(:)              !! the candidates
+    integer, allocatable, intent(inout) :: part(:) !! grown as needed
+    integer, intent(out) :: np
+    logical, intent(out) :: walls(4)            !! the walls that may push k
+    integer :: l, a, b
+    real(wp) :: t, margin
+    if (allocated(part)) then
+      if (size(part) < size(near)) deallocate (part)
+    end if
+    if (.not. allocated(part)) allocate (part(max(64, 2*size(near))))
+    np = 0
+    walls = [.true., .true., end_walls]
+    if (placed(x(k), y(k)) .and. ieee_is_finite(drift)) then
+      ! the distances from the centre to its mirror disks across the walls
+      t = (2.0_wp*r(k) + range + 2.0_wp*drift)*(1.0_wp + 1.0e-9_wp)
+      if (ieee_is_finite(t) .and. ieee_is_finite(width) .and. ieee_is_finite(height)) then
+        if (t >= 0.0_wp .and. abs(width) <= FAR .and. abs(height) <= FAR) then
+          margin = t + 1.0e-9_wp*(abs(x(k)) + abs(y(k)) + abs(width) + abs(height)) + 1.0e-90_wp
+          walls = walls .and. [2.0_wp*abs(x(k)), 2.0_wp*abs(width - x(k)), 2.0_wp*abs(y(k)), &
+                               2.0_wp*abs(height - y(k))] <= margin
+        end if
+      end if
+      do l = 1, size(near)
+        a = near(l)
+        if (a == k) cycle
+        if (placed(x(a), y(a))) then
+          if (beyond(a)) cycle
+        end if
+        np = np + 1
+        part(np) = a
+      end do
+    else
+      ! every candidate but k itself
+      do l = 1, size(near)
+        if (near(l) == k) cycle
+        np = np + 1
+        part(np) = near(l)
+      end do
+    end if
+    ! ascending (insertion sort: the partners are few)
+    do l = 2, np
+      a = part(l)
+      b = l - 1
+      do while (b >= 1)
+        if (part(b) < a) exit
+        part(b + 1) = part(b)
+        b = b - 1
+      end do
+      part(b + 1) = a
+    end do
+  contains
+    !> Whether a centre is finite and within FAR of the origin.
+    pure logical function placed(px, py)
+      real(wp), intent(in) :: px, py
+      placed = ieee_is_finite(px) .and. ieee_is_finite(py)
+      if (placed) placed = abs(px) <= FAR .and. abs(py) <= FAR
+    end function placed
+    !> Whether the centre of a (placed) lies beyond the reach of k's: the distance squared
+    !! beyond that of (rsum + range + drift) (1 + 1e-9), rsum + range summed as repel sums them.
+    pure logical function beyond(a)
+      integer, intent(in) :: a
+      real(wp) :: t
+      beyond = .false.
+      t = ((r(a) + r(k)) + range + drift)*(1.0_wp + 1.0e-9_wp)
+      if (.not. ieee_is_finite(t)) return
+      if (t < 0.0_wp .or. t > FAR) return
+      beyond = (x(a) - x(k))**2 + (y(a) - y(k))**2 > t*t
+    end function beyond
+  end subroutine collision_partners
 
   !> E10 on the first of two disks whose radii add to rsum: zero beyond rsum + range, growing
   !! with the square of the gap inside the range, linear in the overlap.

@@ -3,20 +3,27 @@
 !> own particles, the messages of dkt_particles bring the new states to the slabs that hold
 !> them, and the nodes the disks uncovered are refilled (dkt_particle_links).
 module dkt_particle_motion
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, pi
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
   use dkt_domain, only: domain_t
   use dkt_store, only: lattice_t
-  use dkt_collisions, only: collision_force_on
+  use dkt_collisions, only: collision_force_on, collision_partners
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
-  use dkt_cells, only: cells_build, cells_near
+  use dkt_cells, only: cells_build, cells_near, cells_candidates
   use dkt_particles, only: particles_t, particles_exchange
   use dkt_particle_state, only: state_copy_first
   use dkt_particle_links, only: particles_refill
   implicit none
   private
   public :: particles_move
+
+  !> The farthest a particle's centre moves from its start in a step before its contacts take
+  !! every candidate in place of the partners (collision_partners), with the same bits: about
+  !! the most it moves at the largest allowed speed (run.particle_speed_limit <= 1 spacing per
+  !! step), so that hardly a step takes them.
+  real(wp), parameter :: DRIFT = 1.0_wp
 
 contains
 
@@ -34,9 +41,13 @@ contains
     logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall (E11 against it)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), rs(ps%n), xk, yk
-    integer :: k, s, m
-    integer, allocatable :: near(:)
+    real(wp) :: width, height, reach
+    integer :: k, s, m, np
+    integer, allocatable :: near(:), part(:)
+    logical :: walls(4), alone, sorted
     h = 1.0_wp/ps%substeps
+    width = real(dom%nx, wp)
+    height = real(dom%ny, wp)
     ! the start-of-step centres, which the contacts take; the particle being moved puts its
     ! present centre in its own place during its sub-steps
     xs = ps%p%x(1:ps%n)
@@ -55,14 +66,33 @@ contains
       ! the candidates once for all sub-steps: within the contact reach of the centre at the
       ! start, plus the most it moves in a step (run.particle_speed_limit <= 1). A candidate
       ! beyond the reach adds an exact zero (E10), so the sums are those of a query per sub-step
-      call cells_near(ps%cells, xk, yk, rs(k) + ps%rmax + ps%range + 2.0_wp, near, m)
+      reach = rs(k) + ps%rmax + ps%range + 2.0_wp
+      call cells_candidates(ps%cells, xk, yk, reach, near, m)
+      ! of them, those that can push k while it stays within DRIFT of its start, and the walls
+      ! that can: a sub-step there takes these alone (the others add exact zeros), and adds
+      ! nothing when there are none; one beyond takes every candidate, ascending, and every wall
+      call collision_partners(k, xs, ys, rs, width, height, end_walls, ps%range, DRIFT, &
+                              near(1:m), part, np, walls)
+      alone = np == 0 .and. .not. any(walls)
+      sorted = .false.
       associate (p => ps%p)
         do s = 1, ps%substeps
           xs(k) = p%x(k)
           ys(k) = p%y(k)
-          call collision_force_on(k, xs, ys, rs, real(dom%nx, wp), real(dom%ny, wp), &
-                                  end_walls, ps%stiffness, ps%stiffness_overlap, ps%range, &
-                                  p%cx(k), p%cy(k), near(1:m))
+          if (.not. within_drift(xs(k) - xk, ys(k) - yk)) then
+            if (.not. sorted) call cells_near(ps%cells, xk, yk, reach, near, m)
+            sorted = .true.
+            call collision_force_on(k, xs, ys, rs, width, height, end_walls, ps%stiffness, &
+                                    ps%stiffness_overlap, ps%range, p%cx(k), p%cy(k), near(1:m))
+          else if (alone) then
+            ! (the sum of collision_force_on over no terms)
+            p%cx(k) = 0.0_wp
+            p%cy(k) = 0.0_wp
+          else
+            call collision_force_on(k, xs, ys, rs, width, height, end_walls, ps%stiffness, &
+                                    ps%stiffness_overlap, ps%range, p%cx(k), p%cy(k), &
+                                    part(1:np), walls)
+          end if
           select case (p%motion(k))
           case (MOTION_FREE)
             ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
@@ -92,5 +122,13 @@ contains
     ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
     if (.not. ps%fluid_interior) call particles_refill(ps, dom, f)
   end subroutine particles_move
+
+  !> Whether a centre moved by (dx, dy) from its start of step is within DRIFT of it (false for
+  !! a centre that is not finite).
+  pure logical function within_drift(dx, dy)
+    real(wp), intent(in) :: dx, dy
+    within_drift = ieee_is_finite(dx) .and. ieee_is_finite(dy)
+    if (within_drift) within_drift = dx**2 + dy**2 <= DRIFT**2
+  end function within_drift
 
 end module dkt_particle_motion

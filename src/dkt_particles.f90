@@ -341,6 +341,20 @@ contains
       end if
     end do
     call swap(ps, dom, NPACK, nd, nu, md, mu)
+    ! nothing came and every particle held is an own one that stays (one rank, or a slab without
+    ! ghosts): the merge below would copy them all in their order, so only their owners change
+    if (md == 0 .and. mu == 0) then
+      do a = 1, ps%n
+        if (ps%home(a) /= dom%rank) exit
+        if (.not. held_or_own(a)) exit
+      end do
+      if (a > ps%n) then
+        do a = 1, ps%n
+          ps%home(a) = new_owner(ps%p%y(a), dom%rank)
+        end do
+        return
+      end if
+    end if
     ! merge by id: the own particles this slab still holds, those from below, those from above
     ! (each list ascending; every particle is owned by one rank, so no id comes twice)
     call state_fit(ps%merged, ps%n + md + mu)
@@ -412,6 +426,11 @@ contains
     integer function new_owner(y, was)
       real(wp), intent(in) :: y !! the centre's height
       integer, intent(in) :: was
+      ! (one rank owns every particle)
+      if (dom%nranks == 1) then
+        new_owner = was
+        return
+      end if
       new_owner = owner_of(y, dom, was)
       if (abs(new_owner - was) > 1) new_owner = was
     end function new_owner
@@ -488,6 +507,17 @@ contains
     type(MPI_Request) :: req(2)
     type(MPI_Status) :: st
     integer :: n
+    ! the messages, one each way (counted at an end too, where none travels: the count per step
+    ! is the scheme's, on any number of ranks), and the bytes that travel
+    ps%neighbour_calls = ps%neighbour_calls + 2
+    if (dom%below /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nd*WP_BYTES
+    if (dom%above /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nu*WP_BYTES
+    ! a slab with no neighbour either way (one rank, closed or open ends): nothing to send
+    if (dom%below == MPI_PROC_NULL .and. dom%above == MPI_PROC_NULL) then
+      md = 0
+      mu = 0
+      return
+    end if
     call MPI_Isend(ps%sdn, unit*nd, mpi_wp, dom%below, TAG_DOWN, dom%comm, req(1))
     call MPI_Isend(ps%sup, unit*nu, mpi_wp, dom%above, TAG_UP, dom%comm, req(2))
     ! from above what it sent down, from below what it sent up
@@ -502,10 +532,6 @@ contains
     call fit_real(ps%rdn, n)
     call MPI_Recv(ps%rdn, n, mpi_wp, dom%below, TAG_UP, dom%comm, MPI_STATUS_IGNORE)
     call MPI_Waitall(2, req, MPI_STATUSES_IGNORE)
-    ! the messages sent (to MPI_PROC_NULL at an end: none travels)
-    ps%neighbour_calls = ps%neighbour_calls + 2
-    if (dom%below /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nd*WP_BYTES
-    if (dom%above /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nu*WP_BYTES
   end subroutine swap
 
   !> Every particle of the scene, ascending id, on every rank: from their owners (output,
