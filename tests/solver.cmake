@@ -28,6 +28,10 @@ dkt_add_pytest(NAME interior_density_ratio FILE tests/test_interior.py LABELS re
 dkt_add_pytest(NAME interior_deferred FILE tests/test_interior_deferred.py LABELS regression mpi
   PROCESSORS 3 TIMEOUT 600)
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
+# the contact partners of a step against every candidate, bit for bit, for disks within the
+# drift of their start (40 random crowds of 400 disks, pairs at the reach exactly)
+dkt_add_fortran_test(NAME test_collision_partners SOURCES dkt_check.f90 test_collision_partners.f90
+  LABELS unit NO_MPIEXEC)
 # the link search through the cell list against a search over every disk, on 1 rank and across
 # an uneven split of 3 ranks (90 rows)
 dkt_add_fortran_test(NAME test_cells SOURCES dkt_check.f90 test_cells.f90 LABELS unit)
