@@ -17,12 +17,11 @@
 !> particles the slab does not hold.
 module dkt_particle_links
   use ieee_arithmetic, only: ieee_is_finite
-  use dkt_kinds, only: wp, i8, cs2
+  use dkt_kinds, only: wp, sp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_edge_rows
-  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node, &
-                       lattice_gather, lattice_scatter, lattice_gather_density
+  use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_box
@@ -410,102 +409,179 @@ contains
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
     integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
-    integer, parameter :: XF = 1, YF = 2, DI = 3, DB = 4, X2 = 5, Y2 = 6, XS = 7, YS = 8
-    integer, parameter :: FI = 1, FIB = 2, FFF = 3, RHO = 4, FB = 5
-    integer :: l, m1, n, t, k, i, j, d
-    real(wp) :: q, uwx, uwy, wall, xw, yw, fx, fy
-    type(disk_t) :: pk
+    real(wp) :: no_d(1)
+    real(sp) :: no_s(1)
+    integer :: l, m1, n
     if (j2 < j1) return
     do l = 1, ps%nrows
       if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
     end do
-    ! the links row by row (ps%lorder), each row's in their order (particle, column,
-    ! direction): the lattice is read and written along its rows, and each row sum still adds
-    ! its links in their order. A link reads only fluid nodes and writes only a solid slot that
-    ! no other link reads, so all reads can come before all writes: the populations are
-    ! gathered as lists, the links computed, and their results scattered.
     m1 = ps%lstart(max(j1, 1))
     n = ps%lstart(min(j2, dom%nyl) + 1) - m1
     if (n <= 0) return
-    if (allocated(ps%gi)) then
-      if (size(ps%gi, 1) < n) deallocate (ps%gi, ps%gv)
+    select case (ps%scheme)
+    case (BB_YU, BB_BFL, BB_HALFWAY)
+    case default
+      call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
+    end select
+    ! the links row by row (ps%lorder), each row's in their order (particle, column,
+    ! direction): the lattice is read and written along its rows, and each row sum still adds
+    ! its links in their order. A link reads only fluid nodes and writes only a solid slot that
+    ! no other link reads, so each link can write its result as soon as it has it. The loop
+    ! reads and writes the stored array of the lattice's storage; the other one is a stand-in
+    ! that it never touches.
+    if (.not. f%single) then
+      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), f%d, &
+                        no_s, size(f%d, 1), size(f%d, 2), .false., .false., ps%lp, ps%lx, &
+                        ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+    else
+      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), no_d, &
+                        f%s, size(f%s, 1), size(f%s, 2), .true., f%shifted, ps%lp, ps%lx, &
+                        ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
     end if
-    if (.not. allocated(ps%gi)) allocate (ps%gi(max(n, size(ps%lp)), 8), &
-                                          ps%gv(max(n, size(ps%lp)), 5))
-    associate (g => ps%gi, v => ps%gv)
-      do t = 1, n
-        l = ps%lorder(m1 + t - 1)
-        d = ps%ld(l)
-        g(t, XF) = ps%lx(l)
-        g(t, YF) = ps%ly(l)
-        g(t, DI) = d
-        g(t, DB) = opp(d)
-        ! the second fluid node x_f - e_i (Yu, BFL), or x_f again when there is none: its
-        ! value is then gathered but not used (both schemes read it only when lff)
-        g(t, X2) = merge(ps%lx(l) - ex(d), ps%lx(l), ps%lff(l))
-        g(t, Y2) = merge(ps%ly(l) - ey(d), ps%ly(l), ps%lff(l))
-        ! the solid slot that x_f pulls f_ibar from
-        g(t, XS) = ps%lx(l) + ex(d)
-        g(t, YS) = ps%ly(l) + ey(d)
-      end do
-      call lattice_gather(f, g(1:n, XF), g(1:n, YF), g(1:n, DI), v(1:n, FI))
-      call lattice_gather(f, g(1:n, XF), g(1:n, YF), g(1:n, DB), v(1:n, FIB))
-      call lattice_gather(f, g(1:n, X2), g(1:n, Y2), g(1:n, DI), v(1:n, FFF))
-      ! the density at x_f, once for the links of a node that follow one another
-      call lattice_gather_density(f, g(1:n, XF), g(1:n, YF), v(1:n, RHO))
-      do t = 1, n
-        l = ps%lorder(m1 + t - 1)
-        k = ps%lp(l)
-        i = g(t, XF)
-        j = g(t, YF)
-        d = g(t, DI)
-        q = ps%lq(l)
-        pk = disk(ps%p, k)
-        associate (fi_ => v(t, FI), fib_ => v(t, FIB), fff_ => v(t, FFF), &
-                   fb_ => v(t, FB))
-          ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
-          call wall_of_link(pk, i, dom%y0 + j, d, q, v(t, RHO), xw, yw, uwx, uwy, wall)
-          select case (ps%scheme)
-          case (BB_YU)
-            if (ps%lff(l)) then
-              fb_ = ((1.0_wp - q)*fff_ + q*fi_ + q*fib_ + wall)/(1.0_wp + q)
-            else
-              fb_ = fi_ + wall
-            end if
-          case (BB_BFL)
-            if (q < 0.5_wp) then
-              if (ps%lff(l)) then
-                fb_ = 2.0_wp*q*fi_ + (1.0_wp - 2.0_wp*q)*fff_ + wall
-              else
-                fb_ = fi_ + wall
-              end if
-            else
-              fb_ = (fi_ + (2.0_wp*q - 1.0_wp)*fib_ + wall)/(2.0_wp*q)
-            end if
-          case (BB_HALFWAY)
-            fb_ = fi_ + wall
-          case default
-            call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
-          end select
-          ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the
-          ! Galilean-invariant form replaces e by e - u_w
-          fx = ex(d)*(fi_ + fb_)
-          fy = ey(d)*(fi_ + fb_)
-          if (ps%galilean) then
-            fx = fx - uwx*(fi_ - fb_)
-            fy = fy - uwy*(fi_ - fb_)
-          end if
-          associate (e => ps%lrow(l))
-            ps%rows(1, e) = ps%rows(1, e) + fx
-            ps%rows(2, e) = ps%rows(2, e) + fy
-            ps%rows(3, e) = ps%rows(3, e) + (xw - pk%x)*fy - (yw - pk%y)*fx
-          end associate
-        end associate
-      end do
-      ! f_ibar(x_f, t+1) into the solid slot x_f + e_i
-      call lattice_scatter(f, g(1:n, XS), g(1:n, YS), g(1:n, DB), v(1:n, FB))
-    end associate
   end subroutine particles_bounce
+
+  !> Where a link along e_i reads and writes, as offsets from population 0 of its fluid node
+  !! x_f in a lattice f(0:nxp-1, 0:ny-1, 0:8) taken as one array (f(x, j, i) is element
+  !! x + nxp j + nxp ny i, counted from 0): f_i at x_f (own), f_ibar at x_f (back), f_i at
+  !! x_f - e_i (behind), and the slot f_ibar of the solid node x_f + e_i (ahead).
+  pure subroutine link_offsets(nxp, ny, own, back, behind, ahead)
+    integer(i8), intent(in) :: nxp, ny
+    integer(i8), intent(out) :: own(0:8), back(0:8), behind(0:8), ahead(0:8)
+    integer :: i
+    do i = 0, 8
+      own(i) = i*nxp*ny
+      back(i) = opp(i)*nxp*ny
+      behind(i) = own(i) - ex(i) - nxp*ey(i)
+      ahead(i) = back(i) + ex(i) + nxp*ey(i)
+    end do
+  end subroutine link_offsets
+
+  !> particles_bounce on the links order(:), on the populations as the lattice stores them
+  !! (dkt_store), f(0:nxp-1, 0:ny-1, 0:8) taken as one array: fd in 8 bytes, or fs in 4
+  !! (single) holding f_i - w_i (shifted) or f_i. Each value is read and written as
+  !! lattice_get and lattice_set do, unshifted in 8 bytes. The density at x_f is summed once
+  !! for the links of a node that follow one another, the disk copied once for the links of a
+  !! disk that do. The link arrays of particles_t and its row sums come one by one, as arrays
+  !! of their own, so that the loop holds their addresses instead of reading them out of the
+  !! derived type at each link.
+  subroutine bounce_links(p, scheme, galilean, y0, order, fd, fs, nxp, ny, single, shifted, lp, &
+                          lx, ly, ld, lq, lff, lrow, rows)
+    type(particle_state_t), intent(in) :: p !! the disks
+    integer, intent(in) :: scheme !! BB_YU, BB_BFL or BB_HALFWAY
+    logical, intent(in) :: galilean !! E7 with e - u_w
+    integer, intent(in) :: y0 !! global row of local row 0
+    integer, intent(in) :: order(:) !! the links, in the order they are bounced
+    real(wp), intent(inout) :: fd(0:*)
+    real(sp), intent(inout) :: fs(0:*)
+    integer, intent(in) :: nxp, ny
+    logical, intent(in) :: single, shifted
+    integer, intent(in) :: lp(*), lx(*), ly(*), ld(*), lrow(*) !! particles_t's lp, ...
+    real(wp), intent(in) :: lq(*)
+    logical, intent(in) :: lff(*)
+    real(wp), intent(inout) :: rows(3, *) !! particles_t's rows
+    integer(i8) :: own(0:8), back(0:8), behind(0:8), ahead(0:8), nx8, np8, o, olast
+    integer :: t, l, i, k, kp, d
+    real(wp) :: q, fi, fib, fff, rho, fb, uwx, uwy, wall, xw, yw, fx, fy
+    type(disk_t) :: pk
+    nx8 = nxp
+    np8 = nx8*ny
+    call link_offsets(nx8, int(ny, i8), own, back, behind, ahead)
+    kp = 0
+    olast = -1
+    rho = 0.0_wp
+    do t = 1, size(order)
+      l = order(t)
+      d = ld(l)
+      q = lq(l)
+      o = lx(l) + nxp*ly(l)
+      ! f_i and f_ibar at x_f, f_i at x_f - e_i (read by Yu and BFL only when it is a fluid
+      ! node, x_f's own otherwise: then it is not used), the density at x_f
+      if (.not. single) then
+        fi = fd(o + own(d))
+        fib = fd(o + back(d))
+        fff = fi
+        if (lff(l)) fff = fd(o + behind(d))
+        if (o /= olast) then
+          rho = 0.0_wp
+          do i = 0, 8
+            rho = rho + fd(o + i*np8)
+          end do
+        end if
+      else
+        fi = real(fs(o + own(d)), wp)
+        fib = real(fs(o + back(d)), wp)
+        fff = fi
+        if (lff(l)) fff = real(fs(o + behind(d)), wp)
+        if (shifted) then
+          fi = fi + w(d)
+          fib = fib + w(opp(d))
+          fff = fff + w(d)
+        end if
+        if (o /= olast) then
+          rho = 0.0_wp
+          if (shifted) then
+            do i = 0, 8
+              rho = rho + (real(fs(o + i*np8), wp) + w(i))
+            end do
+          else
+            do i = 0, 8
+              rho = rho + real(fs(o + i*np8), wp)
+            end do
+          end if
+        end if
+      end if
+      olast = o
+      k = lp(l)
+      if (k /= kp) then
+        pk = disk(p, k)
+        kp = k
+      end if
+      ! wall point, its velocity u_w = U + Omega x (x_w - X) and the moving-wall term
+      call wall_of_link(pk, lx(l), y0 + ly(l), d, q, rho, xw, yw, uwx, uwy, wall)
+      select case (scheme)
+      case (BB_YU)
+        if (lff(l)) then
+          fb = ((1.0_wp - q)*fff + q*fi + q*fib + wall)/(1.0_wp + q)
+        else
+          fb = fi + wall
+        end if
+      case (BB_BFL)
+        if (q < 0.5_wp) then
+          if (lff(l)) then
+            fb = 2.0_wp*q*fi + (1.0_wp - 2.0_wp*q)*fff + wall
+          else
+            fb = fi + wall
+          end if
+        else
+          fb = (fi + (2.0_wp*q - 1.0_wp)*fib + wall)/(2.0_wp*q)
+        end if
+      case default
+        fb = fi + wall
+      end select
+      ! f_ibar(x_f, t+1) into the solid slot x_f + e_i
+      if (.not. single) then
+        fd(o + ahead(d)) = fb
+      else if (shifted) then
+        fs(o + ahead(d)) = real(fb - w(opp(d)), sp)
+      else
+        fs(o + ahead(d)) = real(fb, sp)
+      end if
+      ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the
+      ! Galilean-invariant form replaces e by e - u_w
+      fx = ex(d)*(fi + fb)
+      fy = ey(d)*(fi + fb)
+      if (galilean) then
+        fx = fx - uwx*(fi - fb)
+        fy = fy - uwy*(fi - fb)
+      end if
+      associate (e => lrow(l))
+        rows(1, e) = rows(1, e) + fx
+        rows(2, e) = rows(2, e) + fy
+        rows(3, e) = rows(3, e) + (xw - pk%x)*fy - (yw - pk%y)*fx
+      end associate
+    end do
+  end subroutine bounce_links
 
   !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
   !! are not fluid; this keeps them finite and ready for refilling).

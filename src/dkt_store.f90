@@ -21,7 +21,6 @@ module dkt_store
   private
   public :: lattice_t, lattice_allocate, lattice_free, lattice_get, lattice_set, &
             lattice_get_row, lattice_get_node, lattice_set_node, lattice_swap, lattice_allocated, &
-            lattice_gather, lattice_scatter, lattice_gather_density, &
             lattice_bytes, lattice_precision, lattice_precision_name, PRECISION_NAMES
 
   type :: lattice_t
@@ -162,85 +161,6 @@ contains
       lat%d(x, j, i) = v
     end if
   end subroutine lattice_set
-
-  !> v(k) = lattice_get(lat, x(k), j(k), i(k)) for k = 1..size(v): the accessor over a list of
-  !! populations, the storage decided once for the list instead of once per value.
-  pure subroutine lattice_gather(lat, x, j, i, v)
-    type(lattice_t), intent(in) :: lat
-    integer, intent(in) :: x(:), j(:), i(:)
-    real(wp), intent(out) :: v(:)
-    integer :: k
-    if (.not. lat%single) then
-      do k = 1, size(v)
-        v(k) = lat%d(x(k), j(k), i(k))
-      end do
-    else if (lat%shifted) then
-      do k = 1, size(v)
-        v(k) = real(lat%s(x(k), j(k), i(k)), wp) + w(i(k))
-      end do
-    else
-      do k = 1, size(v)
-        v(k) = real(lat%s(x(k), j(k), i(k)), wp)
-      end do
-    end if
-  end subroutine lattice_gather
-
-  !> lattice_set(lat, x(k), j(k), i(k), v(k)) for k = 1..size(v), in that order.
-  subroutine lattice_scatter(lat, x, j, i, v)
-    type(lattice_t), intent(inout) :: lat
-    integer, intent(in) :: x(:), j(:), i(:)
-    real(wp), intent(in) :: v(:)
-    integer :: k
-    if (.not. lat%single) then
-      do k = 1, size(v)
-        lat%d(x(k), j(k), i(k)) = v(k)
-      end do
-    else if (lat%shifted) then
-      do k = 1, size(v)
-        lat%s(x(k), j(k), i(k)) = real(v(k) - w(i(k)), sp)
-      end do
-    else
-      do k = 1, size(v)
-        lat%s(x(k), j(k), i(k)) = real(v(k), sp)
-      end do
-    end if
-  end subroutine lattice_scatter
-
-  !> rho(k) = sum(lattice_get_node(lat, x(k), j(k))), the nine populations added in their order,
-  !! for k = 1..size(rho); a node equal to the one before it is not summed again.
-  pure subroutine lattice_gather_density(lat, x, j, rho)
-    type(lattice_t), intent(in) :: lat
-    integer, intent(in) :: x(:), j(:)
-    real(wp), intent(out) :: rho(:)
-    integer :: k, i, xlast, jlast
-    real(wp) :: rlast
-    xlast = -huge(1)
-    jlast = -huge(1)
-    rlast = 0.0_wp
-    do k = 1, size(rho)
-      if (x(k) == xlast .and. j(k) == jlast) then
-        rho(k) = rlast
-        cycle
-      end if
-      rho(k) = 0.0_wp
-      if (.not. lat%single) then
-        do i = 0, 8
-          rho(k) = rho(k) + lat%d(x(k), j(k), i)
-        end do
-      else if (lat%shifted) then
-        do i = 0, 8
-          rho(k) = rho(k) + (real(lat%s(x(k), j(k), i), wp) + w(i))
-        end do
-      else
-        do i = 0, 8
-          rho(k) = rho(k) + real(lat%s(x(k), j(k), i), wp)
-        end do
-      end if
-      xlast = x(k)
-      jlast = j(k)
-      rlast = rho(k)
-    end do
-  end subroutine lattice_gather_density
 
   !> The nine populations at node (x, j), in 8 bytes and unshifted.
   pure function lattice_get_node(lat, x, j) result(fn)
