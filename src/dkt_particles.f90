@@ -85,10 +85,6 @@ module dkt_particles
     integer, allocatable :: lrow(:)                     !! the row-sum entry of the link
     !> the links of local row j are lorder(lstart(j) .. lstart(j + 1) - 1), in their order
     integer, allocatable :: lorder(:), lstart(:)
-    !> particles_bounce's lists of the links it takes, grown with the links: (link, 8) lattice
-    !! indices, (link, 5) values
-    integer, allocatable :: gi(:, :)
-    real(wp), allocatable :: gv(:, :)
     ! E7 per particle and row: entry e sums the links of particle rk(e) in local row rj(e);
     ! a particle's entries are rfirst(k)..rlast(k), ascending rows
     integer :: nrows = 0
