@@ -3,10 +3,12 @@
 !>
 !> A compiler fuses a product into a following sum (a fused multiply-add, one rounding instead
 !> of two) depending on the code around the expression: which products it has already computed
-!> for other uses, and where it has moved them. Each computation here is compiled once, out of
-!> line and alone, so that every caller gets the bits of the expression as written; the callers
-!> are in other modules, where it is never inlined. dkt_link_search decides most nodes without
-!> the call (inside_at).
+!> for other uses, and where it has moved them out of a loop. Each computation here is compiled
+!> alone, so that every caller gets the bits of the expression as written; the callers are in
+!> other modules, where it is never inlined. dkt_link_search decides most nodes without the
+!> call (inside_at). link_fractions takes q of many links in one loop: every input of a link,
+!> its disk's centre and radius too, is read per link, so that no product of the formula is
+!> shared between links or moved out of the loop, and each link's q has the bits of one call.
 module dkt_link_geometry
   use dkt_kinds, only: wp
   use dkt_lattice, only: ex, ey
@@ -43,9 +45,10 @@ contains
   !> link_fraction of links 1..n: from node (i(l), local row j(l)) of a slab whose first row is
   !! y0 + 1 along d(l), of disk k(l) of centres (x, y) and radii r.
   pure subroutine link_fractions(n, k, i, j, d, y0, x, y, r, q)
-    integer, intent(in) :: n, k(:), i(:), j(:), d(:), y0
-    real(wp), intent(in) :: x(:), y(:), r(:)
-    real(wp), intent(inout) :: q(:)
+    integer, intent(in) :: n, y0
+    integer, intent(in), contiguous :: k(:), i(:), j(:), d(:)
+    real(wp), intent(in), contiguous :: x(:), y(:), r(:)
+    real(wp), intent(inout), contiguous :: q(:)
     integer :: l
     do l = 1, n
       q(l) = link_fraction(x(k(l)), y(k(l)), r(k(l)), i(l) - 0.5_wp, y0 + j(l) - 0.5_wp, d(l))

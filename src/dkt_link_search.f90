@@ -3,34 +3,35 @@
 !> their fractions q, which dkt_particle_links computes) with the row-sum entries and the order
 !> by row that the bounce-back reads.
 !>
-!> A node (i, j) lies inside a disk (X, Y, r) when |x - X|^2 + |y - Y|^2 < r^2, computed as
-!> dkt_particle_links computes it. Along a row, x - X is a rounded difference that never
-!> decreases with i, and the sum never decreases with |x - X|: the nodes of a row inside the
-!> disk are one run of columns lo..hi, the same run the test gives node by node. The ends of
-!> each run are found with that test (a square root only guesses where to start looking), so
-!> the runs, the mask and every link found from them carry the bits of the test itself.
+!> A node (i, j) lies inside a disk (X, Y, r) when |x - X|^2 + |y - Y|^2 < r^2, with the bits of
+!> dkt_link_geometry's disk_inside (inside_at). Along a row, x - X is a rounded difference that
+!> never decreases with i, and the sum never decreases with |x - X|: the nodes of a row inside
+!> the disk are one run of columns lo..hi, the same run the test gives node by node. The ends of
+!> each run are found with that test (the runs of the last placement, or a square root, only
+!> guess where to start looking), so the runs, the mask and every link found from them carry
+!> the bits of the test itself.
 !>
 !> The links of a disk depend on its runs and on the mask near it, nothing else: a disk whose
-!> runs are those of the last search, with no disk's runs changed near it, has the links it had
-!> then, which are taken over instead of searched again (search_links).
+!> runs are those of the last search, with no node of the mask changed near it, has the links it
+!> had then, which are taken over instead of searched again (search_links). q is computed anew
+!> for every link each step (dkt_particle_links), as the centres move.
 module dkt_link_search
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp
   use dkt_lattice, only: ex, ey
   use dkt_domain, only: domain_t
   use dkt_cells, only: cells_build, cells_box
-  use dkt_particles, only: particles_t, inner_link_t
-  use dkt_link_geometry, only: disk_inside, link_fraction
+  use dkt_particles, only: particles_t
+  use dkt_link_geometry, only: disk_inside
   implicit none
   private
-  public :: place_for_nodes, disk_spans, span_of, old_spans_of, is_fluid, search_links, &
-            search_inner_links
+  public :: place_for_nodes, disk_spans, span_of, old_spans_of, is_fluid, search_links
 
   !> The ends of the run of a row without nodes inside the disk: no column lies within them,
   !! and they leave the other runs' smallest start and largest end as they are.
   integer, parameter :: NO_LO = 2**30, NO_HI = -2**30
   !> The side of the blocks of nodes in which search_links notes where the mask changed
-  integer, parameter :: BLOCK = 8
+  integer, parameter :: BLOCK = 4
 
 contains
 
@@ -65,6 +66,7 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     integer :: k, j, m, nrows
+    logical :: near
     real(wp), allocatable :: tr(:, :)
     integer, allocatable :: ti(:, :, :), tj(:)
     if (allocated(ps%solid)) then
@@ -123,8 +125,20 @@ contains
     end if
     do k = 1, ps%n
       ps%placed(:, k) = [ps%p%x(k), ps%p%y(k), ps%p%r(k)]
-      call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, ps%span_j0(k), ps%span_nj(k), &
-                      ps%span(:, :, k))
+      ! (the runs of the placement before guess the ends when they are of a disk at nearly the
+      ! same place)
+      near = .false.
+      if (k <= ps%nplaced_old .and. ps%placed_y0_old == dom%y0) &
+        near = abs(ps%placed_old(1, k) - ps%p%x(k)) + abs(ps%placed_old(2, k) - ps%p%y(k)) < &
+               1.0_wp .and. ps%placed_old(3, k) == ps%p%r(k)
+      if (near) then
+        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, ps%span_j0(k), ps%span_nj(k), &
+                        ps%span(:, :, k), ps%span_j0_old(k), ps%span_nj_old(k), &
+                        ps%span_old(:, :, k))
+      else
+        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, ps%span_j0(k), ps%span_nj(k), &
+                        ps%span(:, :, k))
+      end if
       do m = 1, ps%span_nj(k)
         j = ps%span_j0(k) + m - 1
         ps%solid(max(ps%span(1, m, k), 1):min(ps%span(2, m, k), dom%nx), j) = .true.
@@ -132,6 +146,7 @@ contains
     end do
     ps%nplaced = ps%n
     ps%placed_y0 = dom%y0
+    ps%placements = ps%placements + 1
   end subroutine place_for_nodes
 
   !> The nodes i1..i2, j1..j2 of the mask (rows 0..nyl+1) that a disk at (x, y) of radius r can
@@ -156,11 +171,13 @@ contains
   !! columns 0..nx+1 (the columns beyond the sides too, where a link may end); NO_LO, NO_HI when
   !! none. nj rows (none for a centre that is not finite). Each end is the last column where
   !! the test holds next to the first where it fails, both evaluated.
-  pure subroutine disk_spans(x, y, r, dom, j0, nj, sp)
+  pure subroutine disk_spans(x, y, r, dom, j0, nj, sp, gj0, gnj, gsp)
     real(wp), intent(in) :: x, y, r
     type(domain_t), intent(in) :: dom
     integer, intent(out) :: j0, nj
     integer, intent(inout) :: sp(:, :)
+    !> runs to start from (of the same disk a little earlier): rows gj0.. (gnj rows)
+    integer, intent(in), optional :: gj0, gnj, gsp(:, :)
     integer :: i1, i2, j2, m, ia, s, lo, hi, last
     real(wp) :: py, dy, h
     call mask_box(x, y, r, dom, i1, i2, j0, j2)
@@ -174,20 +191,36 @@ contains
       py = dom%y0 + j0 + m - 1 - 0.5_wp
       sp(1, m) = NO_LO
       sp(2, m) = NO_HI
+      ! s, a node of the run: the first of the earlier run when it is still inside, with that
+      ! run's ends as the guesses; else the node nearest the centre, with the half chord
+      ! sqrt(r^2 - dy^2) guessing the ends
       s = -1
-      if (inside_at(x, y, r, clip(ia) - 0.5_wp, py)) then
-        s = clip(ia)
-      else if (inside_at(x, y, r, clip(ia + 1) - 0.5_wp, py)) then
-        s = clip(ia + 1)
-      else if (inside_at(x, y, r, clip(ia - 1) - 0.5_wp, py)) then
-        s = clip(ia - 1)
+      if (present(gsp)) then
+        if (j0 + m - 1 >= gj0 .and. j0 + m - 1 < gj0 + gnj) then
+          lo = gsp(1, j0 + m - gj0)
+          hi = gsp(2, j0 + m - gj0)
+          if (lo <= hi) then
+            if (inside_at(x, y, r, lo - 0.5_wp, py)) s = lo
+          end if
+        end if
       end if
-      if (s < 0) cycle
-      ! the half chord sqrt(r^2 - dy^2) guesses the ends; the test decides them
-      dy = py - y
-      h = sqrt(max(r*r - dy*dy, 0.0_wp))
-      lo = min(clip(floor(max(min(x - h + 0.5_wp, real(last + 1, wp)), -1.0_wp)) + 1), s)
-      if (inside_at(x, y, r, lo - 0.5_wp, py)) then
+      if (s < 0) then
+        if (inside_at(x, y, r, clip(ia) - 0.5_wp, py)) then
+          s = clip(ia)
+        else if (inside_at(x, y, r, clip(ia + 1) - 0.5_wp, py)) then
+          s = clip(ia + 1)
+        else if (inside_at(x, y, r, clip(ia - 1) - 0.5_wp, py)) then
+          s = clip(ia - 1)
+        end if
+        if (s < 0) cycle
+        dy = py - y
+        h = sqrt(max(r*r - dy*dy, 0.0_wp))
+        lo = clip(floor(max(min(x - h + 0.5_wp, real(last + 1, wp)), -1.0_wp)) + 1)
+        hi = clip(floor(max(min(x + h + 0.5_wp, real(last + 1, wp)), -1.0_wp)))
+      end if
+      ! each end walks from its guess to where the test changes
+      lo = min(lo, s)
+      if (lo == s .or. inside_at(x, y, r, lo - 0.5_wp, py)) then
         do while (lo > 0)
           if (.not. inside_at(x, y, r, lo - 1.5_wp, py)) exit
           lo = lo - 1
@@ -197,8 +230,8 @@ contains
           lo = lo + 1
         end do
       end if
-      hi = max(clip(floor(max(min(x + h + 0.5_wp, real(last + 1, wp)), -1.0_wp))), s)
-      if (inside_at(x, y, r, hi - 0.5_wp, py)) then
+      hi = max(hi, s)
+      if (hi == s .or. inside_at(x, y, r, hi - 0.5_wp, py)) then
         do while (hi < last)
           if (.not. inside_at(x, y, r, hi + 0.5_wp, py)) exit
           hi = hi + 1
@@ -313,19 +346,25 @@ contains
   !! A disk's links are those of the last search (kept_*) when its runs are the same and no
   !! node within two of its runs' box (the nodes its search reads: the nodes beside its runs
   !! and one beyond, for lff) changed in the mask. The mask changes only at nodes that some disk
-  !! covered then and not now or now and not then; those lie in the boxes of the runs of the
-  !! disks whose runs changed (or that came or went), which are noted in blocks of nodes.
+  !! covered then and not now or now and not then: in a row where a disk's run changed, between
+  !! its old and new ends; anywhere in the runs of a disk that came or went. Those nodes are
+  !! noted in blocks of BLOCK x BLOCK nodes.
   subroutine search_links(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer :: k, m, n, ne, n0, i1, i2, j1, j2
+    integer :: k, m, n, ne, n0, i1, i2, j1, j2, since
+    integer :: room, room_e !! places in the arrays of the links, of the entries
     integer, allocatable :: was(:) !! the disk of the last search that disk k is, or 0
     logical, allocatable :: dirty(:, :), same(:), tl(:)
     logical :: kept
     call place_for_nodes(ps, dom)
-    ! the links of the last search become the kept ones, their arrays take the new links
+    ! the runs the last search read: the present ones when no disk was placed since, those of
+    ! the placement before (the refill's, after the move) when one was; else every disk is
+    ! searched
+    since = ps%placements - ps%kept_placement
     kept = ps%kept_n >= 0 .and. ps%kept_y0 == dom%y0 .and. ps%kept_nx == dom%nx .and. &
-           ps%kept_nyl == dom%nyl
+           ps%kept_nyl == dom%nyl .and. since <= 1
+    ! the links of the last search become the kept ones, their arrays take the new links
     call swap(ps%lx, ps%kept_lx)
     call swap(ps%ly, ps%kept_ly)
     call swap(ps%ld, ps%kept_ld)
@@ -343,31 +382,10 @@ contains
     dirty = .false.
     was = 0
     same = .false.
-    if (kept) then
-      m = 1
-      do k = 1, ps%n
-        do while (m <= ps%kept_n)
-          if (ps%kept_id(m) >= ps%p%id(k)) exit
-          call note(ps%kept_span(:, :, m), ps%kept_j0(m), ps%kept_nj(m))
-          m = m + 1
-        end do
-        if (m <= ps%kept_n) then
-          if (ps%kept_id(m) == ps%p%id(k)) then
-            was(k) = m
-            same(k) = ps%kept_j0(m) == ps%span_j0(k) .and. ps%kept_nj(m) == ps%span_nj(k)
-            if (same(k)) same(k) = all(ps%kept_span(:, 1:ps%span_nj(k), m) == &
-                                       ps%span(:, 1:ps%span_nj(k), k))
-            if (.not. same(k)) call note(ps%kept_span(:, :, m), ps%kept_j0(m), ps%kept_nj(m))
-            m = m + 1
-          end if
-        end if
-        if (.not. same(k)) call note(ps%span(:, :, k), ps%span_j0(k), ps%span_nj(k))
-      end do
-      do m = m, ps%kept_n
-        call note(ps%kept_span(:, :, m), ps%kept_j0(m), ps%kept_nj(m))
-      end do
-    end if
+    if (kept) call kept_disks(ps, dom, since, was, same, dirty)
     call fit_entries(ps, max(ps%n, 1), 0)
+    room = 0
+    room_e = 0
     ps%rfirst(1:ps%n) = 1
     ps%rlast(1:ps%n) = 0
     n = 0
@@ -376,12 +394,20 @@ contains
       ! room for every link of k, and the eight written for each node: at most 8 from each node
       ! beside its runs, which span no more than 2 r + 4 columns of each of its rows and the
       ! two beyond them; an entry of the row sums for each of those rows
-      call fit_links(ps, n + 8*(ps%span_nj(k) + 2)*(int(min(2.0_wp*ps%p%r(k), 1.0e6_wp)) + 6), n)
-      call fit_entries(ps, ne + ps%span_nj(k) + 3, ne)
+      m = n + 8*(ps%span_nj(k) + 2)*(int(min(2.0_wp*ps%p%r(k), 1.0e6_wp)) + 6)
+      if (m > room) then
+        call fit_links(ps, m, n)
+        room = min(size(ps%lp), size(ps%lx), size(ps%ly), size(ps%ld), size(ps%lrow), &
+                   size(ps%lq), size(ps%lff))
+      end if
+      if (ne + ps%span_nj(k) + 3 > room_e) then
+        call fit_entries(ps, ne + ps%span_nj(k) + 3, ne)
+        room_e = min(size(ps%rk), size(ps%rj), size(ps%rlink) - 1, size(ps%rows, 2))
+      end if
       if (same(k)) then
         call runs_box(ps%span(:, :, k), ps%span_j0(k), ps%span_nj(k), i1, i2, j1, j2)
-        same(k) = .not. any(dirty(block_x(i1 - 2):block_x(i2 + 2), &
-                                  block_y(j1 - 2):block_y(j2 + 2)))
+        same(k) = .not. any(dirty(block_x(dom, i1 - 2):block_x(dom, i2 + 2), &
+                                  block_y(dom, j1 - 2):block_y(dom, j2 + 2)))
       end if
       n0 = n
       if (same(k)) then
@@ -398,6 +424,52 @@ contains
     ps%links_found = ps%links_found + n
     call row_entries(ps, dom%nyl)
     call keep_runs(ps, dom)
+  end subroutine search_links
+
+  !> The disks of the last search that the present ones are (was, by id), those whose runs are
+  !! the same (same), and the blocks of nodes where the mask changed since (dirty): see
+  !! search_links. since: the placements since the last search, 0 or 1.
+  subroutine kept_disks(ps, dom, since, was, same, dirty)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: since
+    integer, intent(out) :: was(:)
+    logical, intent(out) :: same(:)
+    logical, intent(inout) :: dirty(0:, 0:)
+    integer :: k, m
+    was = 0
+    same = .false.
+    if (since == 0) then
+      ! the same placement: every disk has the runs it had, the mask is the same
+      do k = 1, min(ps%n, ps%kept_n)
+        was(k) = k
+      end do
+      same = was > 0
+    else
+      m = 1
+      do k = 1, ps%n
+        do while (m <= ps%kept_n)
+          if (ps%kept_id(m) >= ps%p%id(k)) exit
+          call note(ps%span_old(:, :, m), ps%span_j0_old(m), ps%span_nj_old(m))
+          m = m + 1
+        end do
+        if (m <= ps%kept_n) then
+          if (ps%kept_id(m) == ps%p%id(k)) then
+            was(k) = m
+            same(k) = ps%span_j0_old(m) == ps%span_j0(k) .and. &
+                      ps%span_nj_old(m) == ps%span_nj(k)
+            if (same(k)) same(k) = all(ps%span_old(:, 1:ps%span_nj(k), m) == &
+                                       ps%span(:, 1:ps%span_nj(k), k))
+            if (.not. same(k)) call note_change(m, k)
+            m = m + 1
+          end if
+        end if
+        if (was(k) == 0) call note(ps%span(:, :, k), ps%span_j0(k), ps%span_nj(k))
+      end do
+      do m = m, ps%kept_n
+        call note(ps%span_old(:, :, m), ps%span_j0_old(m), ps%span_nj_old(m))
+      end do
+    end if
   contains
     !> note the blocks of the box of the runs sp of rows j0.. (nj rows) as changed
     subroutine note(sp, j0, nj)
@@ -405,86 +477,50 @@ contains
       integer :: i1, i2, j1, j2
       call runs_box(sp, j0, nj, i1, i2, j1, j2)
       if (i1 > i2) return
-      dirty(block_x(i1):block_x(i2), block_y(j1):block_y(j2)) = .true.
+      dirty(block_x(dom, i1):block_x(dom, i2), block_y(dom, j1):block_y(dom, j2)) = .true.
     end subroutine note
-    !> the block of column i, within -2..nx+3
-    pure integer function block_x(i)
-      integer, intent(in) :: i
-      block_x = (min(max(i, -2), dom%nx + 3) + BLOCK)/BLOCK
-    end function block_x
-    !> the block of local row j, within -2..nyl+3
-    pure integer function block_y(j)
-      integer, intent(in) :: j
-      block_y = (min(max(j, -2), dom%nyl + 3) + BLOCK)/BLOCK
-    end function block_y
-  end subroutine search_links
-
-  !> The interior links (coupling.interior = 'fluid'): node x_s of this slab inside particle k
-  !! whose neighbour x_f = x_s - e_i is a lattice node outside k, in the order of the boundary
-  !! links (particle, row, column, direction). The mask and runs are those of the last search.
-  subroutine search_inner_links(ps, dom)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    integer :: k
-    do k = 1, ps%n
-      call inner_links_of(ps, dom, k)
-    end do
-  end subroutine search_inner_links
-
-  !> The interior links of disk k (coupling.interior = 'fluid'), in the order of its nodes (row,
-  !! column): those of its nodes within 1.5 of the surface (a node deeper has every neighbour
-  !! inside k too), each node of k's runs being a node inside k.
-  subroutine inner_links_of(ps, dom, k)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: k
-    integer :: j, i, lo, hi
-    real(wp) :: px, py, dist2, near2, deep2
-    near2 = (ps%p%r(k) + 1.5_wp)**2
-    deep2 = max(ps%p%r(k) - 1.5_wp, 0.0_wp)**2
-    do j = max(1, ps%span_j0(k)), min(dom%nyl, ps%span_j0(k) + ps%span_nj(k) - 1)
-      call span_of(ps, k, j, lo, hi)
-      py = dom%y0 + j - 0.5_wp
-      do i = max(1, lo), min(dom%nx, hi)
-        px = i - 0.5_wp
-        dist2 = (px - ps%p%x(k))**2 + (py - ps%p%y(k))**2
-        if (dist2 >= near2 .or. dist2 < deep2) cycle
-        if (.not. mask_fluid(ps, dom, i, j)) call add_inner_links(ps, dom, k, i, j)
+    !> note the blocks of the nodes that disk m of the last search covered and disk k does not,
+    !! or the other way round, as changed
+    subroutine note_change(m, k)
+      integer, intent(in) :: m, k
+      integer :: j, ol, oh, nl, nh
+      do j = min(ps%span_j0_old(m), ps%span_j0(k)), &
+        max(ps%span_j0_old(m) + ps%span_nj_old(m), ps%span_j0(k) + ps%span_nj(k)) - 1
+        ol = NO_LO
+        oh = NO_HI
+        if (j >= ps%span_j0_old(m) .and. j < ps%span_j0_old(m) + ps%span_nj_old(m)) then
+          ol = ps%span_old(1, j - ps%span_j0_old(m) + 1, m)
+          oh = ps%span_old(2, j - ps%span_j0_old(m) + 1, m)
+        end if
+        call span_of(ps, k, j, nl, nh)
+        if (ol > oh .or. nl > nh .or. oh < nl .or. nh < ol) then
+          call mark(ol, oh, j)
+          call mark(nl, nh, j)
+        else
+          call mark(min(ol, nl), max(ol, nl) - 1, j)
+          call mark(min(oh, nh) + 1, max(oh, nh), j)
+        end if
       end do
-    end do
-  end subroutine inner_links_of
+    end subroutine note_change
+    !> note the blocks of columns i1..i2 of row j as changed
+    subroutine mark(i1, i2, j)
+      integer, intent(in) :: i1, i2, j
+      if (i1 <= i2) dirty(block_x(dom, i1):block_x(dom, i2), block_y(dom, j)) = .true.
+    end subroutine mark
+  end subroutine kept_disks
 
-  !> Append the interior links of node (i, j) of this slab, which lies inside particle k
-  !! (coupling.interior = 'fluid'): each direction i with x_f = x_s - e_i outside k and a
-  !! lattice node (a fluid node, a halo node or a node of another particle; not beyond a side
-  !! or a closed end). q is computed from x_f as for the boundary link (x_f, i), so that both
-  !! sides of the link take the wall point, and u_w there, with the same bits.
-  subroutine add_inner_links(ps, dom, k, i, j)
-    type(particles_t), intent(inout) :: ps
+  !> The block of column i, within -2..nx+3 (search_links).
+  pure integer function block_x(dom, i)
     type(domain_t), intent(in) :: dom
-    integer, intent(in) :: k, i, j
-    type(inner_link_t), allocatable :: grown(:)
-    integer :: d, fi, fjg, lo, hi
-    do d = 1, 8
-      fi = i - ex(d)
-      fjg = dom%y0 + j - ey(d)
-      ! x_f inside k: in k's run of its row (rows 0..nyl+1, columns 0..nx+1)
-      call span_of(ps, k, j - ey(d), lo, hi)
-      if (fi >= lo .and. fi <= hi) cycle
-      if (fi < 1 .or. fi > dom%nx) cycle
-      if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
-      if (ps%ninner == size(ps%inner)) then
-        allocate (grown(max(64, 2*ps%ninner)))
-        grown(1:ps%ninner) = ps%inner(1:ps%ninner)
-        call move_alloc(grown, ps%inner)
-      end if
-      ps%ninner = ps%ninner + 1
-      ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
-                                                       fi - 0.5_wp, fjg - 0.5_wp, d), &
-                                         is_fluid(ps, dom, fi, fjg), 0.0_wp)
-    end do
-  end subroutine add_inner_links
+    integer, intent(in) :: i
+    block_x = (min(max(i, -2), dom%nx + 3) + BLOCK)/BLOCK
+  end function block_x
+  !> The block of local row j, within -2..nyl+3.
+  pure integer function block_y(dom, j)
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: j
+    block_y = (min(max(j, -2), dom%nyl + 3) + BLOCK)/BLOCK
+  end function block_y
 
   !> The box i1..i2, j1..j2 of the runs sp of rows j0..j0+nj-1 (i1 > i2 when they hold no node).
   pure subroutine runs_box(sp, j0, nj, i1, i2, j1, j2)
@@ -592,27 +628,15 @@ contains
     ne = ne + e2 - e1 + 1
   end subroutine take_kept
 
-  !> Keep the runs the links were found from, and the slab, for the next search.
+  !> Note what the links were found from for the next search: the disks (by id), the placement
+  !! of their runs and the slab.
   subroutine keep_runs(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer :: k
-    if (allocated(ps%kept_span)) then
-      if (size(ps%kept_span, 2) < size(ps%span, 2) .or. size(ps%kept_span, 3) < ps%n) &
-        deallocate (ps%kept_span, ps%kept_j0, ps%kept_nj, ps%kept_id)
-    end if
-    if (.not. allocated(ps%kept_span)) then
-      allocate (ps%kept_span(2, size(ps%span, 2), size(ps%span, 3)), &
-                ps%kept_j0(size(ps%span, 3)), ps%kept_nj(size(ps%span, 3)), &
-                ps%kept_id(size(ps%span, 3)))
-    end if
-    do k = 1, ps%n
-      ps%kept_span(:, 1:ps%span_nj(k), k) = ps%span(:, 1:ps%span_nj(k), k)
-    end do
-    ps%kept_j0(1:ps%n) = ps%span_j0(1:ps%n)
-    ps%kept_nj(1:ps%n) = ps%span_nj(1:ps%n)
+    call fit_int(ps%kept_id, ps%n, 0)
     ps%kept_id(1:ps%n) = ps%p%id(1:ps%n)
     ps%kept_n = ps%n
+    ps%kept_placement = ps%placements
     ps%kept_y0 = dom%y0
     ps%kept_nx = dom%nx
     ps%kept_nyl = dom%nyl

@@ -23,10 +23,10 @@ module dkt_particle_links
                        lattice_gather, lattice_scatter, lattice_gather_density
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
-  use dkt_particles, only: particles_t
+  use dkt_particles, only: particles_t, inner_link_t
   use dkt_link_search, only: place_for_nodes, disk_spans, span_of, old_spans_of, is_fluid, &
-                             search_links, search_inner_links
-  use dkt_link_geometry, only: link_fractions
+                             search_links
+  use dkt_link_geometry, only: link_fraction, link_fractions
   use dkt_particle_state, only: particle_state_t
   implicit none
   private
@@ -93,12 +93,73 @@ contains
   subroutine particles_find_links(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
+    integer :: k
     call search_links(ps, dom)
     call link_fractions(ps%nlinks, ps%lp, ps%lx, ps%ly, ps%ld, dom%y0, ps%p%x, ps%p%y, ps%p%r, &
                         ps%lq)
     ps%ninner = 0
-    if (ps%fluid_interior) call search_inner_links(ps, dom)
+    if (.not. ps%fluid_interior) return
+    do k = 1, ps%n
+      call inner_links_of(ps, dom, k)
+    end do
   end subroutine particles_find_links
+
+  !> The interior links of disk k (coupling.interior = 'fluid'), in the order of its nodes (row,
+  !! column): those of its nodes within 1.5 of the surface (a node deeper has every neighbour
+  !! inside k too), each node of k's runs being a node inside k (and so not fluid).
+  subroutine inner_links_of(ps, dom, k)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: k
+    integer :: j, i, lo, hi
+    real(wp) :: px, py, dist2, near2, deep2
+    near2 = (ps%p%r(k) + 1.5_wp)**2
+    deep2 = max(ps%p%r(k) - 1.5_wp, 0.0_wp)**2
+    do j = max(1, ps%span_j0(k)), min(dom%nyl, ps%span_j0(k) + ps%span_nj(k) - 1)
+      call span_of(ps, k, j, lo, hi)
+      py = dom%y0 + j - 0.5_wp
+      do i = max(1, lo), min(dom%nx, hi)
+        px = i - 0.5_wp
+        dist2 = (px - ps%p%x(k))**2 + (py - ps%p%y(k))**2
+        if (dist2 >= near2 .or. dist2 < deep2) cycle
+        call add_inner_links(ps, dom, k, i, j)
+      end do
+    end do
+  end subroutine inner_links_of
+
+  !> Append the interior links of node (i, j) of this slab, which lies inside particle k
+  !! (coupling.interior = 'fluid'): each direction i with x_f = x_s - e_i outside k and a
+  !! lattice node (a fluid node, a halo node or a node of another particle; not beyond a side
+  !! or a closed end). q is computed from x_f as for the boundary link (x_f, i), so that both
+  !! sides of the link take the wall point, and u_w there, with the same bits.
+  subroutine add_inner_links(ps, dom, k, i, j)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: k, i, j
+    type(inner_link_t), allocatable :: grown(:)
+    integer :: d, fi, fjg, m
+    do d = 1, 8
+      fi = i - ex(d)
+      fjg = dom%y0 + j - ey(d)
+      ! x_f inside k: in k's run of its row (rows 0..nyl+1, columns 0..nx+1)
+      m = j - ey(d) - ps%span_j0(k) + 1
+      if (m >= 1 .and. m <= ps%span_nj(k)) then
+        if (fi >= ps%span(1, m, k) .and. fi <= ps%span(2, m, k)) cycle
+      end if
+      if (fi < 1 .or. fi > dom%nx) cycle
+      if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
+      if (ps%ninner == size(ps%inner)) then
+        allocate (grown(max(64, 2*ps%ninner)))
+        grown(1:ps%ninner) = ps%inner(1:ps%ninner)
+        call move_alloc(grown, ps%inner)
+      end if
+      ps%ninner = ps%ninner + 1
+      ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
+                                         link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
+                                                       fi - 0.5_wp, fjg - 0.5_wp, d), &
+                                         is_fluid(ps, dom, fi, fjg), 0.0_wp)
+    end do
+  end subroutine add_inner_links
 
   !> Interior side of the links (coupling.interior = 'fluid'), first half: with the halo rows
   !! complete and before any boundary link is bounced, save for each interior link (x_s, i)
@@ -320,23 +381,22 @@ contains
       ! the old disk and the new one
       po = disk(ps%old, m)
       pk = disk(ps%p, k)
+      ! (a disk of radius r covers at most 2 r + 3 rows)
+      onj = int(min(2.0_wp*po%r, 1.0e6_wp)) + 4
+      if (allocated(found)) then
+        if (size(found, 2) < onj) deallocate (found)
+      end if
+      if (.not. allocated(found)) allocate (found(2, onj))
       if (old_spans_of(ps, dom, m, po%x, po%y, po%r)) then
         oj0 = ps%span_j0_old(m)
         onj = ps%span_nj_old(m)
+        found(:, 1:onj) = ps%span_old(:, 1:onj, m)
       else
-        ! (a disk of radius r covers at most 2 r + 3 rows)
-        if (allocated(found)) deallocate (found)
-        allocate (found(2, int(min(2.0_wp*po%r, 1.0e6_wp)) + 4))
         call disk_spans(po%x, po%y, po%r, dom, oj0, onj, found)
       end if
       do j = max(1, oj0), min(dom%nyl, oj0 + onj - 1)
-        if (old_spans_of(ps, dom, m, po%x, po%y, po%r)) then
-          lo = ps%span_old(1, j - oj0 + 1, m)
-          hi = ps%span_old(2, j - oj0 + 1, m)
-        else
-          lo = found(1, j - oj0 + 1)
-          hi = found(2, j - oj0 + 1)
-        end if
+        lo = found(1, j - oj0 + 1)
+        hi = found(2, j - oj0 + 1)
         call span_of(ps, k, j, nlo, nhi)
         jg = dom%y0 + j
         py = jg - 0.5_wp

@@ -124,12 +124,13 @@ module dkt_particles
     !> the first link of each row-sum entry (those of entry e are rlink(e)..rlink(e + 1) - 1)
     integer, allocatable :: rlink(:)
     !> what the last link search found and read, kept for the next one (dkt_link_search): the
-    !! kept_n disks (-1: none) of ids kept_id, their runs kept_span, kept_j0, kept_nj, in a slab
-    !! of first row kept_y0 and kept_nx x kept_nyl nodes; their links kept_lx, kept_ly,
-    !! kept_ld, kept_lff, kept_lrow and row-sum entries kept_rj, kept_rlink, disk m's
-    !! kept_rfirst..kept_rlast
+    !! kept_n disks (-1: none) of ids kept_id, whose runs were those of placement number
+    !! kept_placement (placements counts them), in a slab of first row kept_y0 and kept_nx x
+    !! kept_nyl nodes; their links kept_lx, kept_ly, kept_ld, kept_lff, kept_lrow and row-sum
+    !! entries kept_rj, kept_rlink, disk m's kept_rfirst..kept_rlast
     integer :: kept_n = -1, kept_y0 = 0, kept_nx = 0, kept_nyl = 0
-    integer, allocatable :: kept_id(:), kept_span(:, :, :), kept_j0(:), kept_nj(:)
+    integer :: placements = 0, kept_placement = 0
+    integer, allocatable :: kept_id(:)
     integer, allocatable :: kept_lx(:), kept_ly(:), kept_ld(:), kept_lrow(:), kept_rj(:)
     integer, allocatable :: kept_rlink(:)
     integer, allocatable :: kept_rfirst(:), kept_rlast(:)
