@@ -25,7 +25,7 @@ module dkt_link_search
   use dkt_link_geometry, only: disk_inside
   implicit none
   private
-  public :: place_for_nodes, disk_spans, span_of, old_spans_of, is_fluid, search_links
+  public :: place_for_nodes, disk_spans, old_spans_of, is_fluid, search_links
 
   !> The ends of the run of a row without nodes inside the disk: no column lies within them,
   !! and they leave the other runs' smallest start and largest end as they are.
@@ -614,11 +614,10 @@ contains
     f1 = ps%kept_rlink(e1)
     f2 = ps%kept_rlink(e2 + 1) - 1
     c = f2 - f1 + 1
-    ps%lx(n + 1:n + c) = ps%kept_lx(f1:f2)
-    ps%ly(n + 1:n + c) = ps%kept_ly(f1:f2)
-    ps%ld(n + 1:n + c) = ps%kept_ld(f1:f2)
-    ps%lff(n + 1:n + c) = ps%kept_lff(f1:f2)
-    ps%lrow(n + 1:n + c) = ps%kept_lrow(f1:f2) + (ne + 1 - e1)
+    call copy_links(c, ne + 1 - e1, ps%kept_lx(f1:f2), ps%kept_ly(f1:f2), ps%kept_ld(f1:f2), &
+                    ps%kept_lff(f1:f2), ps%kept_lrow(f1:f2), ps%lx(n + 1:n + c), &
+                    ps%ly(n + 1:n + c), ps%ld(n + 1:n + c), ps%lff(n + 1:n + c), &
+                    ps%lrow(n + 1:n + c))
     ps%rk(ne + 1:ne + e2 - e1 + 1) = k
     ps%rj(ne + 1:ne + e2 - e1 + 1) = ps%kept_rj(e1:e2)
     ps%rlink(ne + 1:ne + e2 - e1 + 1) = ps%kept_rlink(e1:e2) + (n + 1 - f1)
@@ -627,6 +626,23 @@ contains
     n = n + c
     ne = ne + e2 - e1 + 1
   end subroutine take_kept
+
+  !> Copy c links (their entries moved by de).
+  pure subroutine copy_links(c, de, ax, ay, ad, af, ar, bx, by, bd, bf, br)
+    integer, intent(in) :: c, de
+    integer, intent(in) :: ax(c), ay(c), ad(c), ar(c)
+    logical, intent(in) :: af(c)
+    integer, intent(out) :: bx(c), by(c), bd(c), br(c)
+    logical, intent(out) :: bf(c)
+    integer :: l
+    do l = 1, c
+      bx(l) = ax(l)
+      by(l) = ay(l)
+      bd(l) = ad(l)
+      bf(l) = af(l)
+      br(l) = ar(l) + de
+    end do
+  end subroutine copy_links
 
   !> Note what the links were found from for the next search: the disks (by id), the placement
   !! of their runs and the slab.

@@ -24,8 +24,7 @@ module dkt_particle_links
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_particles, only: particles_t, inner_link_t
-  use dkt_link_search, only: place_for_nodes, disk_spans, span_of, old_spans_of, is_fluid, &
-                             search_links
+  use dkt_link_search, only: place_for_nodes, disk_spans, old_spans_of, is_fluid, search_links
   use dkt_link_geometry, only: link_fraction, link_fractions
   use dkt_particle_state, only: particle_state_t
   implicit none
@@ -116,7 +115,8 @@ contains
     near2 = (ps%p%r(k) + 1.5_wp)**2
     deep2 = max(ps%p%r(k) - 1.5_wp, 0.0_wp)**2
     do j = max(1, ps%span_j0(k)), min(dom%nyl, ps%span_j0(k) + ps%span_nj(k) - 1)
-      call span_of(ps, k, j, lo, hi)
+      lo = ps%span(1, j - ps%span_j0(k) + 1, k)
+      hi = ps%span(2, j - ps%span_j0(k) + 1, k)
       py = dom%y0 + j - 0.5_wp
       do i = max(1, lo), min(dom%nx, hi)
         px = i - 0.5_wp
@@ -397,7 +397,13 @@ contains
       do j = max(1, oj0), min(dom%nyl, oj0 + onj - 1)
         lo = found(1, j - oj0 + 1)
         hi = found(2, j - oj0 + 1)
-        call span_of(ps, k, j, nlo, nhi)
+        ! the run of the new disk in this row (none: nlo > nhi)
+        nlo = 1
+        nhi = 0
+        if (j >= ps%span_j0(k) .and. j < ps%span_j0(k) + ps%span_nj(k)) then
+          nlo = ps%span(1, j - ps%span_j0(k) + 1, k)
+          nhi = ps%span(2, j - ps%span_j0(k) + 1, k)
+        end if
         jg = dom%y0 + j
         py = jg - 0.5_wp
         i = max(1, lo)
