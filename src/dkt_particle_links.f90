@@ -16,7 +16,6 @@
 !> links and nodes of the disks a slab holds: nothing here loops over rows without links or over
 !> particles the slab does not hold.
 module dkt_particle_links
-  use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, sp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
@@ -24,17 +23,15 @@ module dkt_particle_links
   use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
-  use dkt_cells, only: cells_build, cells_box
   use dkt_particles, only: particles_t, inner_link_t
+  use dkt_link_search, only: place_for_nodes, disk_spans, old_spans_of, is_fluid, search_links
+  use dkt_link_geometry, only: link_fraction, link_fractions
   use dkt_particle_state, only: particle_state_t
   implicit none
   private
   public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
             particles_inner_write, particles_solid_field, particles_refill, &
             particles_interior_after_move
-
-  !> 1/|e_d|^2 of the moving directions: 1 along the axes, 1/2 (exact) along the diagonals
-  real(wp), parameter :: inv_e2(1:8) = 1.0_wp/real(ex(1:8)**2 + ey(1:8)**2, wp)
 
   !> One disk copied out of the state (disk): what the loops over its nodes read, in scalars
   type :: disk_t
@@ -67,22 +64,6 @@ contains
     inside = (px - p%x)**2 + (py - p%y)**2 < p%r**2
   end function inside
 
-  !> The fraction t in (0, 1] of the link from the point (px, py), outside disk p, along e_d
-  !! that lies outside p: |x + t e - X|^2 = r^2, the smaller root.
-  pure real(wp) function link_fraction(p, px, py, d) result(q)
-    type(disk_t), intent(in) :: p
-    real(wp), intent(in) :: px, py
-    integer, intent(in) :: d
-    real(wp) :: dxp, dyp, b, c, t
-    dxp = px - p%x
-    dyp = py - p%y
-    b = dxp*ex(d) + dyp*ey(d)
-    c = dxp*dxp + dyp*dyp - p%r*p%r
-    ! |e_d|^2 is 1 or 2: the division by it is the exact product with 1 or 1/2
-    t = (-b - sqrt(max(b*b - (ex(d)**2 + ey(d)**2)*c, 0.0_wp)))*inv_e2(d)
-    q = min(max(t, 1.0e-6_wp), 1.0_wp)
-  end function link_fraction
-
   !> The wall point x_w = x_f + q e_d of the link from node (i, jg) (global row) along e_d, the
   !! rigid-body velocity u_w there and the moving-wall term W = -2 w_d rho (e_d . u_w)/c_s^2 of
   !! the population bounced back towards x_f. The interior side of the same link receives -W.
@@ -104,214 +85,48 @@ contains
     rho = sum(lattice_get_node(f, i, j))
   end function node_density
 
-  !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
-  !! Within the slab and a row beyond it the mask says it (place_for_nodes); elsewhere
-  !! fluid_far tests the disks near the node. Both need the present centres.
-  pure logical function is_fluid(ps, dom, i, jg)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: i, jg
-    is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
-    if (.not. is_fluid) return
-    if (jg - dom%y0 >= 0 .and. jg - dom%y0 <= dom%nyl + 1) then
-      is_fluid = mask_fluid(ps, dom, i, jg - dom%y0)
-    else
-      is_fluid = fluid_far(ps, i, jg)
-    end if
-  end function is_fluid
-
-  !> is_fluid for the node (i, j) of the slab's rows 0..nyl+1, which the mask covers.
-  pure logical function mask_fluid(ps, dom, i, j) result(fluid)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: i, j
-    fluid = i >= 1 .and. i <= dom%nx .and. &
-            (dom%periodic_y .or. (dom%y0 + j >= 1 .and. dom%y0 + j <= dom%ny))
-    if (fluid) fluid = .not. ps%solid(i, j)
-  end function mask_fluid
-
-  !> Whether the channel node (i, jg), beyond the mask's rows, lies outside every particle the
-  !! slab holds: only the disks of the cells within rmax of the node are tested.
-  pure logical function fluid_far(ps, i, jg) result(fluid)
-    type(particles_t), intent(in) :: ps
-    integer, intent(in) :: i, jg
-    integer :: k, l, i1, i2, j1, j2, jc
-    real(wp) :: px, py
-    px = i - 0.5_wp
-    py = jg - 0.5_wp
-    call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
-    if (i1 == 0) then
-      fluid = .not. any([(inside(disk(ps%p, k), px, py), k=1, ps%n)])
-      return
-    end if
-    fluid = .true.
-    associate (c => ps%ncells)
-      ! the cells i1..i2 of a row of cells hold one run of c%items
-      do jc = j1, j2
-        do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
-          k = c%items(l)
-          if (inside(disk(ps%p, k), px, py)) fluid = .false.
-        end do
-      end do
-      do l = 1, size(c%stray)
-        k = c%stray(l)
-        if (inside(disk(ps%p, k), px, py)) fluid = .false.
-      end do
-    end associate
-  end function fluid_far
-
-  !> Place the present centres for is_fluid: in cells (a node lies only in disks whose centres
-  !! are within rmax of it), and the mask of the nodes of rows 0..nyl+1 that lie inside a disk
-  !! the slab holds (a slab holds every disk that reaches a row beyond it). The disks of the
-  !! last placement are kept (ps%placed): when the slab and every disk are the same (the links
-  !! are found after the refill of the same step, unless the window moved) nothing is done, and
-  !! otherwise only their boxes are cleared, not the whole slab.
-  subroutine place_for_nodes(ps, dom)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    integer :: k, i, j, i1, i2, j1, j2
-    real(wp) :: py
-    type(disk_t) :: pk
-    if (allocated(ps%solid)) then
-      if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
-        deallocate (ps%solid)
-    end if
-    if (.not. allocated(ps%solid)) then
-      allocate (ps%solid(1:dom%nx, 0:dom%nyl + 1))
-      ps%nplaced = -1
-    end if
-    if (ps%nplaced == ps%n .and. ps%placed_y0 == dom%y0) then
-      if (all(ps%placed(1, 1:ps%n) == ps%p%x(1:ps%n) .and. &
-              ps%placed(2, 1:ps%n) == ps%p%y(1:ps%n) .and. &
-              ps%placed(3, 1:ps%n) == ps%p%r(1:ps%n))) return
-    end if
-    if (ps%nplaced < 0 .or. ps%placed_y0 /= dom%y0) then
-      ps%solid = .false.
-    else
-      do k = 1, ps%nplaced
-        call mask_box(ps%placed(1, k), ps%placed(2, k), ps%placed(3, k), dom, i1, i2, j1, j2)
-        ps%solid(i1:i2, j1:j2) = .false.
-      end do
-    end if
-    call cells_build(ps%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
-    if (allocated(ps%placed)) then
-      if (size(ps%placed, 2) < ps%n) deallocate (ps%placed)
-    end if
-    if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
-    do k = 1, ps%n
-      pk = disk(ps%p, k)
-      ps%placed(:, k) = [pk%x, pk%y, pk%r]
-      call mask_box(pk%x, pk%y, pk%r, dom, i1, i2, j1, j2)
-      do j = j1, j2
-        py = dom%y0 + j - 0.5_wp
-        do i = i1, i2
-          if (inside(pk, i - 0.5_wp, py)) ps%solid(i, j) = .true.
-        end do
-      end do
-    end do
-    ps%nplaced = ps%n
-    ps%placed_y0 = dom%y0
-  end subroutine place_for_nodes
-
-  !> The nodes i1..i2, j1..j2 of the mask (rows 0..nyl+1) that a disk at (x, y) of radius r can
-  !! cover; none (i1 > i2) for a centre that is not finite (the box is clipped before it becomes
-  !! an integer).
-  pure subroutine mask_box(x, y, r, dom, i1, i2, j1, j2)
-    real(wp), intent(in) :: x, y, r
-    type(domain_t), intent(in) :: dom
-    integer, intent(out) :: i1, i2, j1, j2
-    if (.not. (ieee_is_finite(x) .and. ieee_is_finite(y))) then
-      i1 = 1; i2 = 0; j1 = 0; j2 = -1
-      return
-    end if
-    i1 = max(1, int(max(min(x - r, real(dom%nx + 1, wp)), 0.0_wp)))
-    i2 = min(dom%nx, int(max(min(x + r, real(dom%nx, wp)), 0.0_wp)) + 1)
-    j1 = max(0, int(max(min(y - r - dom%y0, real(dom%nyl + 2, wp)), -1.0_wp) + 1.0_wp) - 1)
-    j2 = min(dom%nyl + 1, int(max(min(y + r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp))
-  end subroutine mask_box
-
   !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
   !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid
-  !! (exact intersection of the segment with the circle).
+  !! (exact intersection of the segment with the circle), computed anew for every link (the
+  !! centres move). The links (search_links) are ordered by particle, row, column, direction;
+  !! the interior links (coupling.interior = 'fluid') likewise.
   subroutine particles_find_links(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer :: k, j, jg, i, d, n, cap, i1, i2, j1, j2
-    real(wp) :: px, py, dist2, near2, deep2
-    type(disk_t) :: pk
-    call place_for_nodes(ps, dom)
-    n = 0
+    integer :: k
+    call search_links(ps, dom)
+    call link_fractions(ps%nlinks, ps%lp, ps%lx, ps%ly, ps%ld, dom%y0, ps%p%x, ps%p%y, ps%p%r, &
+                        ps%lq)
     ps%ninner = 0
-    ! the arrays keep their size from step to step (twice as long when they fill)
-    cap = size(ps%lp)
-    if (cap < 16) then
-      cap = 16
-      call resize(cap)
-    end if
+    if (.not. ps%fluid_interior) return
     do k = 1, ps%n
-      pk = disk(ps%p, k)
-      call box(pk, dom, i1, i2, j1, j2)
-      ! A node farther than r + 1.5 from the centre has no neighbour (|e_i| <= sqrt 2) inside
-      ! p, and one nearer than r - 1.5 has all of them and itself inside p: neither makes a
-      ! link of p (nor an interior link: every x_s - e_i is inside p), so only the ring
-      ! between is searched, with the same links in the same order
-      near2 = (pk%r + 1.5_wp)**2
-      deep2 = max(pk%r - 1.5_wp, 0.0_wp)**2
-      do j = j1, j2
-        jg = dom%y0 + j
-        do i = i1, i2
-          px = i - 0.5_wp
-          py = jg - 0.5_wp
-          dist2 = (px - pk%x)**2 + (py - pk%y)**2
-          if (dist2 >= near2 .or. dist2 < deep2) cycle
-          if (.not. mask_fluid(ps, dom, i, j)) then
-            if (ps%fluid_interior) then
-              if (inside(pk, px, py)) call add_inner_links(ps, dom, k, i, j)
-            end if
-            cycle
-          end if
-          do d = 1, 8
-            ! a neighbour inside p is in the mask (rows 0..nyl+1): the mask's byte first
-            if (i + ex(d) >= 1 .and. i + ex(d) <= dom%nx) then
-              if (.not. ps%solid(i + ex(d), j + ey(d))) cycle
-            end if
-            if (.not. inside(pk, px + ex(d), py + ey(d))) cycle
-            n = n + 1
-            if (n > cap) then
-              cap = 2*cap
-              call resize(cap)
-            end if
-            ps%lp(n) = k
-            ps%lx(n) = i
-            ps%ly(n) = j
-            ps%ld(n) = d
-            ps%lq(n) = link_fraction(pk, px, py, d)
-            ps%lff(n) = mask_fluid(ps, dom, i - ex(d), j - ey(d))
-          end do
-        end do
+      call inner_links_of(ps, dom, k)
+    end do
+  end subroutine particles_find_links
+
+  !> The interior links of disk k (coupling.interior = 'fluid'), in the order of its nodes (row,
+  !! column): those of its nodes within 1.5 of the surface (a node deeper has every neighbour
+  !! inside k too), each node of k's runs being a node inside k (and so not fluid).
+  subroutine inner_links_of(ps, dom, k)
+    type(particles_t), intent(inout) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: k
+    integer :: j, i, lo, hi
+    real(wp) :: px, py, dist2, near2, deep2
+    near2 = (ps%p%r(k) + 1.5_wp)**2
+    deep2 = max(ps%p%r(k) - 1.5_wp, 0.0_wp)**2
+    do j = max(1, ps%span_j0(k)), min(dom%nyl, ps%span_j0(k) + ps%span_nj(k) - 1)
+      lo = ps%span(1, j - ps%span_j0(k) + 1, k)
+      hi = ps%span(2, j - ps%span_j0(k) + 1, k)
+      py = dom%y0 + j - 0.5_wp
+      do i = max(1, lo), min(dom%nx, hi)
+        px = i - 0.5_wp
+        dist2 = (px - ps%p%x(k))**2 + (py - ps%p%y(k))**2
+        if (dist2 >= near2 .or. dist2 < deep2) cycle
+        call add_inner_links(ps, dom, k, i, j)
       end do
     end do
-    ps%nlinks = n
-    ps%searches = ps%searches + 1
-    ps%links_found = ps%links_found + n
-    call row_entries(ps, dom%nyl)
-  contains
-    subroutine resize(m)
-      integer, intent(in) :: m
-      integer, allocatable :: ti(:)
-      real(wp), allocatable :: tr(:)
-      logical, allocatable :: tl(:)
-      integer :: keep
-      keep = min(n, size(ps%lp))
-      allocate (ti(m)); ti(1:keep) = ps%lp(1:keep); call move_alloc(ti, ps%lp)
-      allocate (ti(m)); ti(1:keep) = ps%lx(1:keep); call move_alloc(ti, ps%lx)
-      allocate (ti(m)); ti(1:keep) = ps%ly(1:keep); call move_alloc(ti, ps%ly)
-      allocate (ti(m)); ti(1:keep) = ps%ld(1:keep); call move_alloc(ti, ps%ld)
-      allocate (tr(m)); tr(1:keep) = ps%lq(1:keep); call move_alloc(tr, ps%lq)
-      allocate (tl(m)); tl(1:keep) = ps%lff(1:keep); call move_alloc(tl, ps%lff)
-      allocate (ti(m)); ti(1:keep) = ps%lrow(1:keep); call move_alloc(ti, ps%lrow)
-    end subroutine resize
-  end subroutine particles_find_links
+  end subroutine inner_links_of
 
   !> Append the interior links of node (i, j) of this slab, which lies inside particle k
   !! (coupling.interior = 'fluid'): each direction i with x_f = x_s - e_i outside k and a
@@ -323,11 +138,15 @@ contains
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: k, i, j
     type(inner_link_t), allocatable :: grown(:)
-    integer :: d, fi, fjg
+    integer :: d, fi, fjg, m
     do d = 1, 8
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
-      if (inside(disk(ps%p, k), fi - 0.5_wp, fjg - 0.5_wp)) cycle
+      ! x_f inside k: in k's run of its row (rows 0..nyl+1, columns 0..nx+1)
+      m = j - ey(d) - ps%span_j0(k) + 1
+      if (m >= 1 .and. m <= ps%span_nj(k)) then
+        if (fi >= ps%span(1, m, k) .and. fi <= ps%span(2, m, k)) cycle
+      end if
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
       if (ps%ninner == size(ps%inner)) then
@@ -337,7 +156,7 @@ contains
       end if
       ps%ninner = ps%ninner + 1
       ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
-                                         link_fraction(disk(ps%p, k), &
+                                         link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
                                                        fi - 0.5_wp, fjg - 0.5_wp, d), &
                                          is_fluid(ps, dom, fi, fjg), 0.0_wp)
     end do
@@ -647,12 +466,15 @@ contains
   !! every new one become fluid: equilibrium at the wall velocity there with the mean density of
   !! their fluid neighbours. The particles are taken in id order, as one rank would take them; a
   !! particle held before and not now, or now and not before, is beyond the reach of this slab's
-  !! rows in one of the two states and so uncovers none of its nodes.
+  !! rows in one of the two states and so uncovers none of its nodes. The nodes inside a disk
+  !! are its runs (place_for_nodes): those of the old disk are kept from the placement before
+  !! the move when it placed the same disk, and found again otherwise.
   subroutine particles_refill(ps, dom, f)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
-    integer :: k, m, i, j, jg, d, nf, i1, i2, j1, j2
+    integer :: k, m, i, j, jg, d, nf, oj0, onj, lo, hi, nlo, nhi
+    integer, allocatable :: found(:, :)
     real(wp) :: px, py, rho, ux, uy
     type(disk_t) :: po, pk
     call place_for_nodes(ps, dom)
@@ -667,109 +489,64 @@ contains
       ! the old disk and the new one
       po = disk(ps%old, m)
       pk = disk(ps%p, k)
-      call box(po, dom, i1, i2, j1, j2)
-      do j = j1, j2
+      ! (a disk of radius r covers at most 2 r + 3 rows)
+      onj = int(min(2.0_wp*po%r, 1.0e6_wp)) + 4
+      if (allocated(found)) then
+        if (size(found, 2) < onj) deallocate (found)
+      end if
+      if (.not. allocated(found)) allocate (found(2, onj))
+      if (old_spans_of(ps, dom, m, po%x, po%y, po%r)) then
+        oj0 = ps%span_j0_old(m)
+        onj = ps%span_nj_old(m)
+        found(:, 1:onj) = ps%span_old(:, 1:onj, m)
+      else
+        call disk_spans(po%x, po%y, po%r, dom, oj0, onj, found)
+      end if
+      do j = max(1, oj0), min(dom%nyl, oj0 + onj - 1)
+        lo = found(1, j - oj0 + 1)
+        hi = found(2, j - oj0 + 1)
+        ! the run of the new disk in this row (none: nlo > nhi)
+        nlo = 1
+        nhi = 0
+        if (j >= ps%span_j0(k) .and. j < ps%span_j0(k) + ps%span_nj(k)) then
+          nlo = ps%span(1, j - ps%span_j0(k) + 1, k)
+          nhi = ps%span(2, j - ps%span_j0(k) + 1, k)
+        end if
         jg = dom%y0 + j
-        do i = i1, i2
-          px = i - 0.5_wp
-          py = jg - 0.5_wp
-          if (.not. inside(po, px, py)) cycle
-          ! inside the new disk too: not fluid (the mask says so at once; this is cheaper)
-          if (inside(pk, px, py)) cycle
-          if (.not. is_fluid(ps, dom, i, jg)) cycle
-          ! mean density of the fluid neighbours in the same row: a row is never split
-          ! between ranks, so the refill does not depend on the decomposition
-          rho = 0.0_wp
-          nf = 0
-          do d = 1, 3, 2
-            if (inside(po, px + ex(d), py)) cycle
-            if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
-            rho = rho + sum(lattice_get_node(f, i + ex(d), j))
-            nf = nf + 1
-          end do
-          if (nf > 0) then
-            rho = rho/nf
-          else
-            rho = 1.0_wp
+        py = jg - 0.5_wp
+        i = max(1, lo)
+        do while (i <= min(dom%nx, hi))
+          ! inside the new disk too: not fluid
+          if (i >= nlo .and. i <= nhi) then
+            i = nhi + 1
+            cycle
           end if
-          call surface_velocity(pk, px, py, ux, uy)
-          call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
+          px = i - 0.5_wp
+          if (is_fluid(ps, dom, i, jg)) then
+            ! mean density of the fluid neighbours in the same row: a row is never split
+            ! between ranks, so the refill does not depend on the decomposition
+            rho = 0.0_wp
+            nf = 0
+            do d = 1, 3, 2
+              ! a neighbour inside the old disk is in its run
+              if (i + ex(d) >= lo .and. i + ex(d) <= hi) cycle
+              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+              rho = rho + sum(lattice_get_node(f, i + ex(d), j))
+              nf = nf + 1
+            end do
+            if (nf > 0) then
+              rho = rho/nf
+            else
+              rho = 1.0_wp
+            end if
+            call surface_velocity(pk, px, py, ux, uy)
+            call lattice_set_node(f, i, j, equilibrium(rho, ux, uy))
+          end if
+          i = i + 1
         end do
       end do
     end do
   end subroutine particles_refill
-
-  !> The per-row sums of E7: one entry per particle and row that holds its links, in the links'
-  !! order (particle, then row), each link pointing at its entry.
-  subroutine row_entries(ps, nyl)
-    type(particles_t), intent(inout) :: ps
-    integer, intent(in) :: nyl !! rows of the slab
-    integer :: l, k, n, m
-    if (.not. allocated(ps%rfirst)) allocate (ps%rfirst(0), ps%rlast(0))
-    if (size(ps%rfirst) < ps%n) then
-      m = max(ps%n, 2*size(ps%rfirst))
-      deallocate (ps%rfirst, ps%rlast)
-      allocate (ps%rfirst(m), ps%rlast(m))
-    end if
-    ps%rfirst(1:ps%n) = 1
-    ps%rlast(1:ps%n) = 0
-    n = 0
-    do l = 1, ps%nlinks
-      k = ps%lp(l)
-      if (n == 0) then
-        n = 1
-      else if (ps%rk(n) /= k .or. ps%rj(n) /= ps%ly(l)) then
-        n = n + 1
-      end if
-      if (n > size(ps%rk)) call grow(max(64, 2*n))
-      if (ps%rlast(k) < ps%rfirst(k)) ps%rfirst(k) = n
-      ps%rlast(k) = n
-      ps%rk(n) = k
-      ps%rj(n) = ps%ly(l)
-      ps%lrow(l) = n
-    end do
-    ps%nrows = n
-    ps%rows(:, 1:n) = 0.0_wp
-    ! the links by row, stable (a counting sort): lorder(lstart(j) .. lstart(j + 1) - 1) are
-    ! the links of row j in their order
-    if (.not. allocated(ps%lstart)) allocate (ps%lstart(0))
-    if (size(ps%lstart) /= nyl + 1) then
-      deallocate (ps%lstart)
-      allocate (ps%lstart(nyl + 1))
-    end if
-    if (.not. allocated(ps%lorder)) allocate (ps%lorder(0))
-    if (size(ps%lorder) < ps%nlinks) then
-      deallocate (ps%lorder)
-      allocate (ps%lorder(max(ps%nlinks, 2*size(ps%lp))))
-    end if
-    ps%lstart = 0
-    do l = 1, ps%nlinks
-      ps%lstart(ps%ly(l)) = ps%lstart(ps%ly(l)) + 1
-    end do
-    m = 1
-    do k = 1, nyl + 1
-      n = ps%lstart(k)
-      ps%lstart(k) = m
-      m = m + n
-    end do
-    do l = 1, ps%nlinks
-      k = ps%ly(l)
-      ps%lorder(ps%lstart(k)) = l
-      ps%lstart(k) = ps%lstart(k) + 1
-    end do
-    ! each start now points at the next row's first link: shift back by one row
-    ps%lstart(2:) = ps%lstart(1:nyl)
-    ps%lstart(1) = 1
-  contains
-    subroutine grow(m)
-      integer, intent(in) :: m
-      integer, allocatable :: ti(:)
-      real(wp), allocatable :: tr(:, :)
-      allocate (ti(m)); ti(1:n - 1) = ps%rk(1:n - 1); call move_alloc(ti, ps%rk)
-      allocate (ti(m)); ti(1:n - 1) = ps%rj(1:n - 1); call move_alloc(ti, ps%rj)
-      allocate (tr(3, m)); call move_alloc(tr, ps%rows)
-    end subroutine grow
-  end subroutine row_entries
 
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
   !! nodes for the links and their second fluid nodes.

@@ -108,6 +108,29 @@ module dkt_particles
     !! the nodes they set
     integer(i8) :: neighbour_bytes = 0, searches = 0, links_found = 0
     integer(i8) :: resets = 0, nodes_reset = 0
+    ! the nodes inside each disk, a run of columns per row (dkt_link_search's place_for_nodes):
+    ! disk k of the last placement covers columns span(1, m, k)..span(2, m, k) of local row
+    ! span_j0(k) + m - 1, m = 1..span_nj(k); the *_old arrays keep the placement before it (the
+    ! disks before the move, for the refill): nplaced_old disks placed_old, first row
+    ! placed_y0_old
+    integer, allocatable :: span(:, :, :), span_j0(:), span_nj(:)
+    integer, allocatable :: span_old(:, :, :), span_j0_old(:), span_nj_old(:)
+    real(wp), allocatable :: placed_old(:, :)
+    integer :: nplaced_old = -1, placed_y0_old = 0
+    !> the first link of each row-sum entry (those of entry e are rlink(e)..rlink(e + 1) - 1)
+    integer, allocatable :: rlink(:)
+    !> what the last link search found and read, kept for the next one (dkt_link_search): the
+    !! kept_n disks (-1: none) of ids kept_id, whose runs were those of placement number
+    !! kept_placement (placements counts them), in a slab of first row kept_y0 and kept_nx x
+    !! kept_nyl nodes; their links kept_lx, kept_ly, kept_ld, kept_lff, kept_lrow and row-sum
+    !! entries kept_rj, kept_rlink, disk m's kept_rfirst..kept_rlast
+    integer :: kept_n = -1, kept_y0 = 0, kept_nx = 0, kept_nyl = 0
+    integer :: placements = 0, kept_placement = 0
+    integer, allocatable :: kept_id(:)
+    integer, allocatable :: kept_lx(:), kept_ly(:), kept_ld(:), kept_lrow(:), kept_rj(:)
+    integer, allocatable :: kept_rlink(:)
+    integer, allocatable :: kept_rfirst(:), kept_rlast(:)
+    logical, allocatable :: kept_lff(:)
   end type particles_t
 
 contains
