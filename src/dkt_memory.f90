@@ -23,9 +23,9 @@ module dkt_memory
   real(wp), parameter :: SWEEP_ROW_DOUBLES = 3.0_wp + 3.0_wp + 2.0_wp + 3.0_wp + 9.0_wp + 4.5_wp + &
                          9.0_wp + 4.5_wp
   !> bytes of a boundary link (dkt_particles): particle, column, row, direction, row entry and
-  !! second-node flag (4 each), q (8), its place in the row order (4), and particles_bounce's
-  !! lists of 8 indices (4 each) and 5 values (8 each)
-  real(wp), parameter :: LINK_BYTES = 6*4 + 8 + 4 + 8*4 + 5*8
+  !! second-node flag (4 each), q (8), its place in the row order (4), and the copy of column,
+  !! row, direction, row entry and flag the link search keeps for the next step (4 each)
+  real(wp), parameter :: LINK_BYTES = 6*4 + 8 + 4 + 5*4
 
 contains
 
@@ -37,9 +37,9 @@ contains
   !! ghosts within reach, and every rank reads the whole scene): per particle its state three
   !! times over (held, before the move, the merge of a message; 128 bytes each) and two message
   !! slots (16 doubles each), the boundary links, at most 8 per surface node and about pi d + 8
-  !! surface nodes per particle of d spacings (108 bytes a link: its record, its place in the
-  !! row order and the bounce-back's lists of indices and values), and the force sums of the rows
-  !! it spans (d + 4 rows, 40 bytes each); and the mask of the nodes inside disks (a 4-byte
+  !! surface nodes per particle of d spacings (56 bytes a link: its record, its place in the
+  !! row order and the copy the search keeps), and per row it spans (d + 4 rows) the force sums
+  !! and the runs of its nodes now and before the move (56 bytes); and the mask of the nodes inside disks (a 4-byte
   !! logical per node of the slab and the rows beside it); (3) the output: the field buffer of
   !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column) and the
   !! row buffers of the sweep (SWEEP_ROW_DOUBLES per padded column).
@@ -58,7 +58,7 @@ contains
       d_cells = lp%largest_diameter/lp%dx
       bytes(2) = real(n, wp)*(3.0_wp*128.0_wp + 2.0_wp*16.0_wp*8.0_wp + &
                               LINK_BYTES*8.0_wp*(pi*d_cells + 8.0_wp) + &
-                              40.0_wp*(d_cells + 4.0_wp)) + &
+                              56.0_wp*(d_cells + 4.0_wp)) + &
                  4.0_wp*real(lp%nx, wp)*real(nyl + 2, wp)
     end if
     bytes(3) = 6.0_wp*8.0_wp*real(lp%nx, wp)*real(nyl, wp) + 12.0_wp*8.0_wp*real(lp%nx, wp) + &
