@@ -39,10 +39,10 @@ contains
   !! slots (16 doubles each), the boundary links, at most 8 per surface node and about pi d + 8
   !! surface nodes per particle of d spacings (56 bytes a link: its record, its place in the
   !! row order and the copy the search keeps), and per row it spans (d + 4 rows) the force sums
-  !! and the runs of its nodes now and before the move (56 bytes); and the mask of the nodes inside disks (a 4-byte
-  !! logical per node of the slab and the rows beside it); (3) the output: the field buffer of
-  !! up to 6 doubles per node, the halo send and receive buffers (12 doubles per column) and the
-  !! row buffers of the sweep (SWEEP_ROW_DOUBLES per padded column).
+  !! and the runs of its nodes now and before the move (56 bytes); and the mask of the nodes
+  !! inside disks (a 4-byte logical per node of the slab and the rows beside it); (3) the
+  !! output: the field buffer of up to 6 doubles per node, the halo send and receive buffers (12
+  !! doubles per column) and the row buffers of the sweep (SWEEP_ROW_DOUBLES per padded column).
   pure function rank_memory(cfg, lp, nxp, nyl) result(bytes)
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(in) :: lp
