@@ -14,7 +14,7 @@ module dkt_cells
   use dkt_kinds, only: wp
   implicit none
   private
-  public :: cells_t, cells_build, cells_near, cells_candidates, cells_box
+  public :: cells_t, cells_build, cells_near, cells_candidates, cells_box, sort_ascending
 
   !> The largest |coordinate| a centre or a query point may have to be placed in a cell.
   real(wp), parameter :: FAR = 1.0e100_wp
@@ -111,20 +111,27 @@ contains
     real(wp), intent(in) :: px, py, reach
     integer, allocatable, intent(inout) :: near(:) !! grown as needed
     integer, intent(out) :: m
-    integer :: k, l, a
     call cells_candidates(c, px, py, reach, near, m)
-    ! insertion sort: the lists are short (the disks of a few cells)
+    call sort_ascending(near, m)
+  end subroutine cells_near
+
+  !> Sort list(1:m) ascending by insertion: the lists sorted here are short (the disks of a few
+  !! cells, a disk's contact partners).
+  pure subroutine sort_ascending(list, m)
+    integer, intent(inout) :: list(:)
+    integer, intent(in) :: m
+    integer :: k, l, a
     do l = 2, m
-      a = near(l)
+      a = list(l)
       k = l - 1
       do while (k >= 1)
-        if (near(k) < a) exit
-        near(k + 1) = near(k)
+        if (list(k) < a) exit
+        list(k + 1) = list(k)
         k = k - 1
       end do
-      near(k + 1) = a
+      list(k + 1) = a
     end do
-  end subroutine cells_near
+  end subroutine sort_ascending
 
   !> The disks of cells_near in no particular order (the cells' ones row of cells by row of
   !! cells, then the stray disks), each once: for a caller that keeps a few of them.

@@ -5,6 +5,7 @@
 module dkt_collisions
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp
+  use dkt_cells, only: sort_ascending
   implicit none
   private
   public :: collision_forces, collision_force_on, collision_partners, repel
@@ -169,7 +170,7 @@ contains
     integer, allocatable, intent(inout) :: part(:) !! grown as needed
     integer, intent(out) :: np
     logical, intent(out) :: walls(4)            !! the walls that may push k
-    integer :: l, a, b
+    integer :: l, a
     real(wp) :: t, margin
     if (allocated(part)) then
       if (size(part) < size(near)) deallocate (part)
@@ -204,17 +205,8 @@ contains
         part(np) = near(l)
       end do
     end if
-    ! ascending (insertion sort: the partners are few)
-    do l = 2, np
-      a = part(l)
-      b = l - 1
-      do while (b >= 1)
-        if (part(b) < a) exit
-        part(b + 1) = part(b)
-        b = b - 1
-      end do
-      part(b + 1) = a
-    end do
+    ! ascending (the partners are few)
+    call sort_ascending(part, np)
   contains
     !> Whether a centre is finite and within FAR of the origin.
     pure logical function placed(px, py)

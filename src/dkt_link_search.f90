@@ -68,7 +68,7 @@ contains
     integer :: k, j, m, nrows
     logical :: near
     real(wp), allocatable :: tr(:, :)
-    integer, allocatable :: ti(:, :, :), tj(:)
+    integer, allocatable :: ti(:, :, :)
     if (allocated(ps%solid)) then
       if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
         deallocate (ps%solid)
@@ -99,12 +99,8 @@ contains
     call move_alloc(ps%span, ti)
     call move_alloc(ps%span_old, ps%span)
     call move_alloc(ti, ps%span_old)
-    call move_alloc(ps%span_j0, tj)
-    call move_alloc(ps%span_j0_old, ps%span_j0)
-    call move_alloc(tj, ps%span_j0_old)
-    call move_alloc(ps%span_nj, tj)
-    call move_alloc(ps%span_nj_old, ps%span_nj)
-    call move_alloc(tj, ps%span_nj_old)
+    call swap(ps%span_j0, ps%span_j0_old)
+    call swap(ps%span_nj, ps%span_nj_old)
     ps%nplaced_old = ps%nplaced
     ps%placed_y0_old = ps%placed_y0
     call cells_build(ps%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
