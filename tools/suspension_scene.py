@@ -8,6 +8,9 @@ literature set-up in its comment header:
 - ``sediment504``: the 504 disks of Glowinski, Pan, Hesla, Joseph & Périaux (2001) in a
   closed 2 cm x 2 cm cavity, D = 0.0625 cm, rho_p = 1.01 g/cm^3, water (rho_f = 1 g/cm^3,
   nu = 0.01 cm^2/s), released at rest in a regular lattice under the lid;
+- ``sediment504_dense``: the same 504 disks in the denser lattice of an independent
+  reproduction of the test (18 rows of 28, 1.125 D apart, above 0.72 cm of clear fluid); its
+  gaps of 0.125 D need 24 spacings per D with a contact range of 2;
 - ``bidisperse``: 256 disks of two sizes (D = 0.125 and 0.0625 cm, ratio 2) alternating on a
   square lattice (a checkerboard) under the lid of a closed 2 cm x 6 cm box;
 - ``sediment10k``: 10 032 disks of the 504-disk scene's size and density in the same lattice
@@ -39,7 +42,7 @@ import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-KINDS = ("sediment504", "bidisperse", "sediment10k")
+KINDS = ("sediment504", "sediment504_dense", "bidisperse", "sediment10k")
 RANGE = 3.0  # &collision range, in lattice spacings, the default (docs/suspensions.md)
 TAU = 0.65  # the shipped particle scenes' relaxation time
 GRAVITY = 980.0  # cm/s^2
@@ -241,6 +244,30 @@ def sediment504(cells_per_diameter: float) -> Scene:
                  cells_per_diameter=cells_per_diameter)
 
 
+def sediment504_dense(cells_per_diameter: float) -> Scene:
+    """The 504 disks in the lattice of an independent reproduction of the test: in units of
+    1/256 cm, rows 18 apart from y = 498 (the top) down to 192, centres 18 apart along a row
+    from x = 12, every second row from the top 2 further right (docs/suspensions.md)."""
+    unit = 1.0 / 256.0
+    disks = [Disk((12 + 18 * i + (2 if j % 2 == 0 else 0)) * unit, (498 - 18 * j) * unit,
+                  D_SMALL) for j in range(18) for i in range(28)]
+    header = [
+        "sediment504_dense: the 504 disks of sediment504 (Glowinski et al., J. Comput. Phys.",
+        "169 (2001) 363-426) in the closed 2 cm x 2 cm cavity, in the lattice of an independent",
+        "lattice Boltzmann reproduction of the test (docs/suspensions.md, the literature set-up):",
+        "18 rows of 28, centres 1.125 D = 0.0703 cm apart along a row and between rows, every",
+        "second row from the top 0.0078 cm to the right, from y = 0.750 to 1.945 cm above 0.72 cm",
+        "of clear fluid. D = 0.0625 cm, rho_p = 1.01 g/cm^3, rho_f = 1 g/cm^3, nu = 0.01 cm^2/s,",
+        "g = 980 cm/s^2. The surface gaps of 0.125 D (0.0078 cm) ask for 24 spacings per D with",
+        "a contact range of 2 spacings (the rule of sediment504).",
+        "Run length: the reproduction ran 24 s; the fingers and the first disks at the bottom",
+        "come in the first seconds (docs/suspensions.md).",
+    ]
+    return Scene("sediment504_dense", header, 2.0, 2.0, disks, t_end=24.0,
+                 series_interval=0.02, field_interval=0.5, progress_every=10000,
+                 cells_per_diameter=cells_per_diameter)
+
+
 def bidisperse(cells_per_diameter: float) -> Scene:
     """Two sizes, diameter ratio 2, mixed on a checkerboard."""
     width, height = 2.0, 6.0
@@ -382,7 +409,8 @@ def render(scene: Scene, command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-BUILDERS = {"sediment504": sediment504, "bidisperse": bidisperse, "sediment10k": sediment10k}
+BUILDERS = {"sediment504": sediment504, "sediment504_dense": sediment504_dense,
+            "bidisperse": bidisperse, "sediment10k": sediment10k}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -391,7 +419,8 @@ def main(argv: list[str] | None = None) -> int:
         epilog="e.g. python3 tools/suspension_scene.py --kind sediment504 "
                "--out input/sediment504.nml")
     parser.add_argument("--kind", choices=KINDS, required=True,
-                        help="sediment504 (Glowinski et al. 2001), bidisperse (two sizes, "
+                        help="sediment504 (Glowinski et al. 2001), sediment504_dense (its "
+                             "disks in a reproduction's denser lattice), bidisperse (two sizes, "
                              "ratio 2) or sediment10k (10 032 disks in a tall box)")
     parser.add_argument("--cells-per-diameter", type=float, default=10.0, metavar="N",
                         help="lattice spacings across the smallest disk (&lbm "
