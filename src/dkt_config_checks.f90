@@ -10,7 +10,7 @@ module dkt_config_checks
   use dkt_registry, only: registry_t, find_key, value_text, origin_of, blame
   use dkt_text, only: quoted, fmt_real, fmt_num, itoa
   use dkt_config_types, only: config_t
-  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob
+  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob, window_max_above
   use dkt_config_lattice, only: lattice_params_t
   implicit none
   private
@@ -92,8 +92,8 @@ contains
     ck%few_cells = 0
     ck%near_wall = 0
     ck%window_length = ck%c%domain%height
-    if (ck%c%window%enabled .and. ck%c%window%max_above > 0.0_wp) &
-      ck%window_length = max(ck%window_length, (ck%c%window%below + ck%c%window%max_above)* &
+    if (ck%c%window%enabled .and. window_max_above(ck%c) > 0.0_wp) &
+      ck%window_length = max(ck%window_length, (ck%c%window%below + window_max_above(ck%c))* &
                              largest_diameter(ck%c))
     do j = 1, ck%c%particles%count
       call chk_particle(ck, err, j)
@@ -372,7 +372,8 @@ contains
         err = from(ck, 'window.max_above window.above')//': &window max_above = '// &
               val(ck, 'window', 'max_above')//' D_1 is below above = '// &
               val(ck, 'window', 'above')//' D_1: the window would shrink; allowed: '// &
-              'max_above = 0 (the window never grows) or max_above >= above'
+              'max_above = -1 (it grows as the run needs), 0 (it never grows) or '// &
+              'max_above >= above'
         return
       end if
       d1 = largest_diameter(c)

@@ -7,7 +7,7 @@ module dkt_config_lattice
   use dkt_config_types, only: config_t
   use dkt_config_scene, only: window_bottom, pair_d1, largest_diameter, kiss_enter_cells, &
                               kiss_thresholds, dx_knob, velocity_scale_source, &
-                              compressibility_class, pair_named
+                              compressibility_class, pair_named, window_max_above
   implicit none
   private
   public :: lattice_from
@@ -71,7 +71,7 @@ contains
     type(config_t), intent(in) :: c
     type(lattice_params_t) :: lp
     real(wp) :: nu, s_nu, s_q, width_lb, u_g
-    integer :: k
+    integer :: k, growths
     nu = c%fluid%viscosity/c%fluid%density ! cm^2/s
     lp%dx = c%lbm%dx
     lp%tau = c%lbm%tau
@@ -130,10 +130,16 @@ contains
     if (c%window%enabled) then
       lp%window_bottom = window_bottom(c)
       ! docs/model.md §5: rows counted as the window's height is (dkt_config_scene expand)
-      if (c%window%max_above > 0.0_wp) then
-        lp%ny_max = max(lp%ny, 3, nint((c%window%below + c%window%max_above)* &
+      if (window_max_above(c) > 0.0_wp) then
+        lp%ny_max = max(lp%ny, 3, nint((c%window%below + window_max_above(c))* &
                                        largest_diameter(c)/lp%dx))
         lp%grow_rows = max(1, nint(0.5_wp*c%window%above*largest_diameter(c)/lp%dx))
+        ! a limit of its own (-1) ends on a whole growth, so that a run resumed with a later
+        ! run.t_end, and so a farther limit, can resume from any window this one grew to
+        if (c%window%max_above < 0.0_wp) then
+          growths = (lp%ny_max - lp%ny + lp%grow_rows - 1)/lp%grow_rows
+          lp%ny_max = lp%ny + growths*lp%grow_rows
+        end if
       end if
     end if
     lp%kiss_enter_cells = kiss_enter_cells(c)

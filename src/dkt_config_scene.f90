@@ -11,7 +11,7 @@ module dkt_config_scene
   implicit none
   private
   public :: expand, pair_d1, largest_diameter, window_bottom, kiss_enter_cells, kiss_thresholds, &
-            pair_named
+            pair_named, window_max_above
   public :: dx_knob, velocity_scale, velocity_scale_source, compressibility_class
 
   !> the smallest tau lbm.mach may set: nu_lb >= 1/300, the 0.01 above 1/2 keeps clear of the
@@ -21,6 +21,9 @@ module dkt_config_scene
   !! set-up", ties them to the measured window table): negligible, small, noticeable; above
   !! the last one, large
   real(wp), parameter, public :: MA2_CLASS_TOPS(3) = [1.0e-3_wp, 1.0e-2_wp, 5.0e-2_wp]
+  !> the longest the default window.max_above = -1 lets a window grow, in window.above:
+  !! 20 x 15 D_1 = 300 D_1 for the paper's window (docs/model.md §5)
+  real(wp), parameter, public :: WINDOW_AUTO_CAP = 20.0_wp
 
 contains
 
@@ -147,6 +150,32 @@ contains
     type(config_t), intent(in) :: c
     d = maxval(c%particles%diameter(1:c%particles%count))
   end function largest_diameter
+
+  !> The longest the window may grow above the lowest free centre, in D_1 (docs/model.md §5):
+  !! window.max_above when it is set (0: it never grows), and with the default -1 the window's
+  !! length above plus the distance the velocity scale U of the scene (velocity_scale) covers
+  !! in the run, U t/D_1, at most WINDOW_AUTO_CAP times window.above. Two disks settling side by
+  !! side draw apart no faster than the faster of them falls, so a pair whose speeds stay within
+  !! U never outruns a window that long, and a run given a longer run.t_end gets a longer limit;
+  !! the cap keeps a run of days (or a velocity scale of a mistyped gravity) from asking for a
+  !! window the memory check refuses, when the pair has long settled to a fixed distance.
+  function window_max_above(c) result(above)
+    type(config_t), intent(in) :: c
+    real(wp) :: above
+    real(wp) :: u, t_run, nu
+    character(len=:), allocatable :: source
+    above = c%window%max_above
+    if (above >= 0.0_wp) return
+    call velocity_scale(c, u, source)
+    t_run = c%run%t_end
+    if (c%run%steps > 0) then
+      ! E3: dt = nu_lb dx^2/nu, as lattice_from takes it
+      nu = c%fluid%viscosity/c%fluid%density
+      t_run = c%run%steps*(cs2*(c%lbm%tau - 0.5_wp)*c%lbm%dx**2/nu)
+    end if
+    above = c%window%above + min(u*t_run/largest_diameter(c), &
+                                 (WINDOW_AUTO_CAP - 1.0_wp)*c%window%above)
+  end function window_max_above
 
   !> y (cm, absolute) of the lower end of the window at t = 0: window%below D_1 under the
   !! lowest free particle's centre. Particle positions stay absolute; node rows are counted

@@ -145,8 +145,9 @@ module dkt_config_types
     real(wp) :: above = 15.0_wp             !! D_1 from the lowest centre up to the upper end
     real(wp) :: margin = 1.0_wp             !! D_1: a particle this close to the upper end ends
                                             !! the run (the pair separated beyond the window)
-    real(wp) :: max_above = 0.0_wp          !! D_1: the window grows up to this length above the
-                                            !! lowest centre instead of ending the run; 0 = never
+    real(wp) :: max_above = -1.0_wp         !! D_1: the window grows up to this length above the
+                                            !! lowest centre instead of ending the run; 0 = never;
+                                            !! -1 = as the run needs (window_max_above)
   contains
     procedure :: register => window_register
   end type window_cfg_t
@@ -531,7 +532,9 @@ contains
     call add_real(reg, 'window', 'max_above', self%max_above, '-', 'the longest the '// &
                   'window may grow above the lowest particle''s centre, in D_1 (>= above): '// &
                   'it grows by above/2 at a time when a particle comes within margin of its '// &
-                  'upper end; 0: it never grows', ge=1.0_wp, zero_ok=.true.)
+                  'upper end; 0: it never grows; -1: as far as the run needs, above plus the '// &
+                  'settling-speed scale times the run''s length, at most 20 above '// &
+                  '(docs/model.md section 5)', ge=1.0_wp, zero_ok=.true., auto_ok=.true.)
   end subroutine window_register
 
   !> Register the keys of &diagnostics, each bound to its component of `self`.

@@ -248,6 +248,8 @@ contains
                       [character(len=2) :: 'cm', 's', '1', '1', '1', '1', '1', '1', '1'])
     call io_write_attribute(out%io, '/run', 'nx', sim%lp%nx)
     call io_write_attribute(out%io, '/run', 'ny', sim%lp%ny)
+    ! the rows a growing window may reach (window.max_above), ny when it never grows
+    call io_write_attribute(out%io, '/run', 'ny_max', sim%lp%ny_max)
     call io_write_attribute(out%io, '/run', 'steps', sim%lp%steps)
     call write_derived(sim)
     ! replaced when the run ends; a file that still says 'running' is of a run that is going

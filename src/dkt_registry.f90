@@ -37,6 +37,7 @@ module dkt_registry
     character(len=:), allocatable :: choices !! allowed values of a choice, blank-separated
     logical :: has_lo = .false., lo_open = .false., has_hi = .false., hi_open = .false.
     logical :: zero_ok = .false.             !! 0 is allowed besides the range ("use the rule")
+    logical :: auto_ok = .false.             !! -1 is allowed besides the range ("automatic")
     real(wp) :: lo = 0.0_wp, hi = 0.0_wp     !! range bounds (integers are compared as reals)
     character(len=:), allocatable :: origin  !! 'file:line' or '--set ...' of the last assignment
     !> an array sized from the input: what its size follows, appended to an index error
@@ -108,15 +109,16 @@ contains
   end subroutine add_key
 
   !> Register a real key bound to `x`; the range is given by any of gt, ge, lt, le.
-  subroutine add_real(reg, group, name, x, unit, meaning, gt, ge, lt, le, zero_ok)
+  subroutine add_real(reg, group, name, x, unit, meaning, gt, ge, lt, le, zero_ok, auto_ok)
     type(registry_t), intent(inout) :: reg
     character(len=*), intent(in) :: group, name, unit, meaning
     real(wp), intent(inout), target :: x
     real(wp), intent(in), optional :: gt, ge, lt, le
-    logical, intent(in), optional :: zero_ok
+    logical, intent(in), optional :: zero_ok, auto_ok
     call add_key(reg, group, name, KEY_REAL, unit, meaning)
     reg%keys(size(reg%keys))%r => x
     call set_range(reg%keys(size(reg%keys)), gt, ge, lt, le, zero_ok)
+    if (present(auto_ok)) reg%keys(size(reg%keys))%auto_ok = auto_ok
   end subroutine add_real
 
   !> Register a real array key bound to `x` (documented as name(size(x))).
@@ -380,6 +382,7 @@ contains
     real(wp), intent(in) :: x
     in_range = .true.
     if (k%zero_ok .and. abs(x) <= 0.0_wp) return ! exactly 0
+    if (k%auto_ok .and. x == -1.0_wp) return ! exactly -1
     if (k%has_lo) in_range = in_range .and. merge(x > k%lo, x >= k%lo, k%lo_open)
     if (k%has_hi) in_range = in_range .and. merge(x < k%hi, x <= k%hi, k%hi_open)
   end function in_range
@@ -452,6 +455,7 @@ contains
       end if
       s = squeeze(s)
       if (k%zero_ok) s = nm//' = 0 or '//s
+      if (k%auto_ok) s = nm//' = -1 or '//s
     case (KEY_LOGICAL)
       s = '.true. or .false.'
     case (KEY_CHOICE)

@@ -36,7 +36,8 @@ contains
   subroutine report_summary(sim)
     type(simulation_t), intent(in) :: sim
     character(len=512) :: line
-    character(len=256) :: particles, window
+    character(len=256) :: particles
+    character(len=400) :: window
     real(wp) :: s(0:8), mem(3)
     integer :: k
     type(domain_t) :: largest
@@ -109,6 +110,16 @@ contains
       if (sim%window_on) then
         write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
+        if (lp%ny_max > lp%ny) then
+          write (window, '(a,a,f0.1,a)') trim(window), ', grows to at most ', &
+            lp%ny_max*lp%dx/lp%largest_diameter - cfg%window%below, ' D_1 above'
+          if (cfg%window%max_above < 0.0_wp) then
+            window = trim(window)//' (window.max_above = -1: window.above and the velocity '// &
+                     'scale times the run''s length)'
+          end if
+        else
+          window = trim(window)//', never grows (window.max_above = 0)'
+        end if
       end if
       line = 'memory per rank: lattices '//fixed2(mem(1))//' MiB ('// &
              trim(merge('one lattice, streamed in place', 'two lattices                  ', &

@@ -668,6 +668,12 @@ contains
         key = 'max_above'
         limit = sim%cfg%window%max_above
         why = ', and the window has grown to its limit ('
+      else if (sim%cfg%window%max_above < 0.0_wp) then
+        ! the limit of its own: the particles outran the velocity scale it is measured with
+        key = 'max_above'
+        limit = window_above(sim)
+        why = ', and the window has grown to the limit window.max_above = -1 sets, faster '// &
+              'than the scene''s velocity scale ('
       end if
       write (msg, '(a,i0,a,i0,a,es11.4,a,f7.2,a)') 'particle ', k, &
         ' came within window.margin of the window''s upper end at step ', n, ' (t = ', &

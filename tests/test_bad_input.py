@@ -645,7 +645,7 @@ def test_window_position_bound_is_2_to_the_31_spacings_less_the_window(tmp_path:
     outdir = tmp_path / "out"
     common = [str(scene), "--set", "pair.gamma=1", "--set", "pair.d1=0.2"]
     common += ["--set", "lbm.cells_per_diameter=10", "--set", "window.below=10"]
-    common += ["--set", "window.above=15"]
+    common += ["--set", "window.above=15", "--set", "window.max_above=0"]  # a fixed window
     proc = dkt([*common, "--set", "pair.y_upper=1e9", "--set", f"output.dir={outdir}"], cwd)
     msg = assert_clean_failure(proc, outdir, cwd)
     bound = number_after("2^31 dx - window length =", msg)

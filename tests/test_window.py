@@ -396,8 +396,9 @@ def test_a_pair_that_separates_beyond_the_window_ends_the_run_early_and_cleanly(
     tmp_path: Path,
 ) -> None:
     """case2 (the smaller disk above the larger one, so the larger falls away from it) with
-    the window only 4 D_1 above the lowest centre, on 2 ranks: the smaller disk reaches the
-    1 D_1 margin under the upper end within a second, and the run stops there with exit 0, a
+    the window only 4 D_1 above the lowest centre and never growing, on 2 ranks: the smaller
+    disk reaches the 1 D_1 margin under the upper end within a second, and the run stops there
+    with exit 0, a
     warning naming window.above, /diagnostics ended_early = 1, the last sample and field group
     at the step it stopped (before t_end), and the escaped disk within the margin at that step.
     Catches a run that goes on with a disk in the outflow, a rank that stops alone (hang), or
@@ -407,6 +408,7 @@ def test_a_pair_that_separates_beyond_the_window_ends_the_run_early_and_cleanly(
         "window.below=4",
         "window.above=4",
         "window.margin=1",
+        "window.max_above=0",  # a window that never grows (the default grows as needed)
         "run.t_end=3.0",
         "output.series_interval=0.005",
         "output.field_interval=0.5",

@@ -20,6 +20,10 @@ Proves:
   ParaView (when pvpython is installed) sees both;
 - a window grown to its limit still ends the run with window_escape and a warning naming
   window.max_above;
+- by default (window.max_above = -1) the window grows as the run needs: the run grows where the
+  one with max_above = 8 grows and gives its bits (on 2 ranks against 1), and the limit the
+  start-up summary states is window.above plus the settling-speed scale times the run's
+  length, counted in whole growths; only max_above = 0 keeps a window of fixed length;
 - the start-up summary states the memory of the largest window, the figure the memory check
   takes.
 
@@ -31,6 +35,7 @@ keeps the old slab in the run file.
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -109,7 +114,7 @@ def test_the_window_grows_where_a_fixed_one_ends_the_run_and_the_run_goes_on(run
     assert all(len(set(rows_for(NY1, n))) == 2 for n in (2, 3, 4))
     # the same scene with a window of fixed length ends where this one grew
     fixed = runs.root / "fixed"
-    proc = run(NML, 1, [*SETS[:3], *SETS[4:]], fixed, timeout=600)
+    proc = run(NML, 1, [*SETS[:3], "window.max_above=0", *SETS[4:]], fixed, timeout=600)
     assert "window.above" in proc.stderr
     assert stop_reason(fixed / "case2.h5") == "window_escape"
     with h5py.File(fixed / "case2.h5", "r") as h5:
@@ -305,3 +310,45 @@ def test_the_summary_states_the_memory_of_the_largest_window_the_check_takes(
         assert (proc.returncode == 0) == passes, (margin, proc.stdout + proc.stderr)
         if not passes:
             assert "145 cells" in proc.stderr and "run.memory_limit" in proc.stderr, proc.stderr
+
+
+def test_by_default_the_window_grows_as_the_run_needs_and_gives_the_same_bits(
+    runs: Runs, tmp_path: Path
+) -> None:
+    """Without window.max_above (-1, the default) the window grows at the step the run with
+    max_above = 8 grows and to the same 121 rows; a growth changes nothing before it, so the run
+    gives that run's every bit, here on 2 ranks against its 1-rank run. A default that never
+    grows ends the run at step 535 and fails."""
+    out = tmp_path / "auto"
+    sets = [s for s in SETS if not s.startswith("window.max_above")]
+    proc = run(NML, 2, sets, out, timeout=600)
+    assert f"window grown to {NY1} rows" in proc.stdout, proc.stdout
+    assert stop_reason(out / "case2.h5") == "finished"
+    assert_same_bits(datasets(runs.get(1) / "case2.h5"), datasets(out / "case2.h5"),
+                     "window.max_above = -1 on 2 ranks against = 8 on 1")
+
+
+def test_the_default_limit_is_above_plus_the_velocity_scale_times_the_run(
+    tmp_path: Path,
+) -> None:
+    """The limit of window.max_above = -1, from the scene's numbers (input/case2.nml: the larger
+    disk D = d1 = 0.2 cm, 12 spacings, rho_p = 1.01, g = 980 cm/s^2; dt = 1/720 s): the
+    settling-speed scale U = sqrt(pi D/2 (rho_p/rho_f - 1) g), the run's length t = steps dt,
+    above + U t/D D_1, rounded up to a whole number of growths of above/2 from the first 97
+    rows. Doubling run.steps lengthens it, up to 20 x above; window.max_above = 0 states a
+    window that never grows."""
+    d, dt, grow = 0.2, 1.0 / 720.0, 24
+    u = math.sqrt(math.pi * d / 2.0 * 0.01 * 980.0)
+    sets = [s for s in SETS if not s.startswith(("window.max_above", "run.steps"))]
+    for steps in (STEPS, 2 * STEPS, 10**7):  # the last at the cap, 20 x above = 80 D_1
+        limit = 4.0 + min(u * steps * dt / d, 19 * 4.0)
+        rows = round((4.0833333 + limit) * d / (d / 12.0))
+        expect = NY0 + grow * math.ceil((rows - NY0) / grow)
+        proc = run(NML, 1, [*sets, f"run.steps={steps}"], tmp_path / "a", extra=["--check"],
+                   timeout=120)
+        m = GROWN_MIB.search(proc.stdout)
+        assert m and int(m.group(2)) == expect, (expect, proc.stdout)
+        assert "window.max_above = -1" in proc.stdout, proc.stdout
+    proc = run(NML, 1, [*sets, "window.max_above=0"], tmp_path / "b", extra=["--check"],
+               timeout=120)
+    assert not GROWN_MIB.search(proc.stdout) and "never grows" in proc.stdout, proc.stdout

@@ -24,10 +24,12 @@ pattern as all of them and the pair is neither closing in nor out of line at t_e
 more than D_1/2 apart across the channel); otherwise the point runs again with t_end
 doubled, up to --max-t-end. --max-above means what the key window.max_above means: the longest
 the window may be above the lowest particle's centre, in D_1 (default: the runs'
-window.max_above, else 4 times window.above). A run that ended by window_escape is never final
+window.max_above, else 4 times window.above). By default each run's window grows as far as
+the run needs (window.max_above = -1: window.above plus the velocity scale times run.t_end,
+docs/model.md §5), so an escape is rare. A run that ended by window_escape is never final
 by itself: the point runs again with window.above doubled, up to --max-above. With a window
-that grows (--grow, or window.max_above set in the scene or a --set) each run's window grows
-by itself up to that limit (docs/model.md §5), so no point runs again for an escape: one at
+whose limit is given (--grow, or window.max_above > 0 in the scene or a --set) each run's
+window grows by itself up to that limit, so no point runs again for an escape: one at
 the limit stops the bisection. `collect` reports both in regime.csv. With --kiss (a
 once-to-never threshold) 'once' and 'repeated' are one class, 'kisses', final as soon as a
 run has a kissing episode.
@@ -43,6 +45,7 @@ gives the names callers import from dktlbm.sweep.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -88,6 +91,7 @@ from .sweepcommon import (
     verdict,
     wall_seconds,
     window_above,
+    with_sweep_precision,
     write_plan,
 )
 from .sweepplan import (
@@ -238,7 +242,8 @@ def parser() -> argparse.ArgumentParser:
         "pattern as all of them; otherwise it runs again with run.t_end doubled, up to "
         "--max-t-end; 'repeated' is final as soon as it is reached, and a 'once' or 'never' "
         "whose pair is closing in, or out of line (centres more than D_1/2 apart across the "
-        "channel), at t_end is not settled. A run ended by window_escape is "
+        "channel), at t_end is not settled. Each run's window grows as far as the run needs "
+        "by default (window.max_above = -1). A run ended by window_escape is "
         "never final: the point runs again with window.above doubled, up to --max-above (the "
         "longest the window may be above the lowest particle's centre, as window.max_above); "
         "with --grow (or window.max_above in the scene or a --set) each run's window grows by "
@@ -345,7 +350,15 @@ def search_fields(args: argparse.Namespace, base: Path) -> dict[str, object]:
     if not (above is not None and math.isfinite(above) and above >= 1):
         raise SweepError(f"{base}: &window above is not a number >= 1 ({text!r}); set it with "
                          f"--set window.above=D (in D_1)")
-    sets = list(args.sets)
+    sets, mode = with_sweep_precision(base, args.sets)
+    recorded = _recorded_sets(args.out)
+    if recorded is not None and not any(s.startswith("lbm.precision=") for s in recorded) \
+            and not scene_setting(base, args.sets, "lbm.precision"):
+        # a search an earlier version started, its runs in the program's default: go on so
+        sets = list(args.sets)
+        mode = (f"precision: lbm.precision = double, as the runs {args.out} already holds "
+                f"(begun without the sweep's default)")
+    print(mode, flush=True)
     grown, text = scene_number(base, sets, "window.max_above")
     grows = grown is not None and math.isfinite(grown) and grown > 0
     if grows and args.max_above is not None and args.max_above != grown:
@@ -360,6 +373,17 @@ def search_fields(args: argparse.Namespace, base: Path) -> dict[str, object]:
     return {"sets": sets, "out": args.out.resolve(), "exe": args.exe or default_exe(),
             "t_end": t_end, "max_t_end": max_t_end, "above": above, "max_above": max_above,
             "kiss": args.kiss, "grow": max_above if grows or args.grow else 0.0}
+
+
+def _recorded_sets(out: Path) -> list[str] | None:
+    """The --set list of the bisection or map that directory `out` holds (its bisect.json or
+    map.json), None when it holds none or the file is unreadable (bisect_state says so)."""
+    for name in (BISECT_STATE, sweepmap.MAP_STATE):
+        try:
+            return list(json.loads((out / name).read_text()).get("sets", []))
+        except (OSError, ValueError, TypeError, AttributeError):
+            continue
+    return None
 
 
 def search_launcher(args: argparse.Namespace, out: Path):
@@ -395,8 +419,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             raise SweepError(f"the plan would hold {runs} runs, more than --max-runs "
                              f"{args.max_runs}: narrow --gamma or --dh, or pass --max-runs "
                              f"{runs} to plan them all")
-        plan = make_plan(args.base, args.gamma, args.dh, args.sets, out,
-                         args.exe or default_exe())
+        if not args.base.is_file():
+            raise SweepError(f"{args.base}: no such scene file")
+        sets, mode = with_sweep_precision(args.base, args.sets)
+        print(mode)
+        plan = make_plan(args.base, args.gamma, args.dh, sets, out, args.exe or default_exe())
         if not args.no_check:
             check_plan(plan)
         path = write_plan(plan, out)

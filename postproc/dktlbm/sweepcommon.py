@@ -99,6 +99,23 @@ def scene_setting(base: Path, sets: list[str], dotted: str) -> str | None:
     return found[0] if found else None
 
 
+#: The mode dkt-sweep runs in unless the scene or a --set names one: the fastest whose answers
+#: stay within the sweep bound of docs/tradeoff.md (every pattern, kissing window and Re of its
+#: rows equal double's to the bound; section "Arithmetic in 4 bytes").
+SWEEP_PRECISION = "single_arith"
+
+
+def with_sweep_precision(base: Path, sets: list[str]) -> tuple[list[str], str]:
+    """`sets` with lbm.precision = SWEEP_PRECISION added when neither the scene nor a --set
+    names a precision, and the line that says which mode the runs use and why."""
+    given = scene_setting(base, sets, "lbm.precision")
+    if given:
+        return list(sets), f"precision: lbm.precision = {given.strip(chr(39) + chr(34))} (given)"
+    return [*sets, f"lbm.precision={SWEEP_PRECISION}"], (
+        f"precision: lbm.precision = {SWEEP_PRECISION}, the fastest mode within the sweep "
+        f"bound of docs/tradeoff.md (--set lbm.precision=double runs in 8 bytes)")
+
+
 def scene_number(base: Path, sets: list[str], dotted: str) -> tuple[float | None, str | None]:
     """group.key (dotted) as the run will see it (scene_setting), as a number, and its text:
     (None, text) when the text is not a number, (None, None) when nothing gives it."""

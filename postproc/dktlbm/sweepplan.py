@@ -20,6 +20,8 @@ import threading
 import time
 from pathlib import Path
 
+import h5py
+
 from . import launch as mpi
 from .read import run_status
 from .sweepcommon import (
@@ -430,8 +432,9 @@ def _runs(n: int) -> str:
 
 def _window_limit(r: PlannedRun) -> float:
     """The window.max_above to rerun the run `r` with after it left its window: twice its own
-    limit when its window grew, else 4 times its window.above (the program's default when
-    neither its --set options nor its scene give them)."""
+    limit when its window could grow (the limit its --set options or scene give, else the one
+    its run file states, that of the default window.max_above = -1), else 4 times its
+    window.above (a window that never grew)."""
     base, sets = Path(r.args[1]), _sets_of(r)
     grown = scene_number(base, sets, "window.max_above")[0]
     if grown is not None and grown > 0:
@@ -439,7 +442,23 @@ def _window_limit(r: PlannedRun) -> float:
     above, text = window_above(base, sets)
     if above is None:  # the run could not have started with it
         raise SweepError(f"run {r.id}: window.above = {text!r} is not a number")
-    return 4 * above
+    reached = _limit_of_run(r.h5, above) if grown != 0 else None
+    return 2 * reached if reached is not None else 4 * above
+
+
+def _limit_of_run(h5: Path, above: float) -> float | None:
+    """The D_1 above the lowest centre a run's window could grow to, from its run file: it
+    starts `above` D_1 over that centre with /run ny rows of dx and may reach /run ny_max rows
+    (D_1 = /run d1). None when the file or its ny_max (files of earlier versions) is missing or
+    the window could not grow."""
+    try:
+        with h5py.File(h5, "r") as f:
+            a = f["run"].attrs
+            ny, ny_max = int(a["ny"]), int(a["ny_max"])
+            step = float(a["dx"]) / float(a["d1"])
+    except (OSError, KeyError, ValueError):
+        return None
+    return round(above + (ny_max - ny) * step, 2) if ny_max > ny else None
 
 
 def _sets_of(r: PlannedRun) -> list[str]:

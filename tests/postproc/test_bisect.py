@@ -295,20 +295,24 @@ def test_max_above_means_what_window_max_above_means(tmp_path: Path, base: Path)
     """--max-above is the longest the window may be above the lowest particle's centre, the
     meaning of the key window.max_above: runs that set window.max_above = 40 (a --set) search
     up to 40 D_1 without --max-above (not 4 x window.above = 60) and grow up to it; --grow
-    --max-above 40 adds window.max_above=40 to the runs; without either the limit is
-    4 x window.above and the windows do not grow. --max-above with a different
+    --max-above 40 adds window.max_above=40 to the runs; without either the search's limit is
+    4 x window.above and the runs' windows grow only as the program's default lets them.
+    --max-above with a different
     window.max_above is refused with one error line naming both, exit 2 (before any run)."""
     def fields(*extra: str) -> dict[str, object]:
         args = sweep.parser().parse_args([str(x) for x in fake_bisect(base, tmp_path / "o")]
                                          + list(extra))
         return sweep.search_fields(args, base)
 
+    mode = "lbm.precision=single_arith"  # the sweep's precision, added to every search
     got = fields("--set", "window.max_above=40")
-    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0,
+                                                            ["window.max_above=40", mode])
     got = fields("--grow", "--max-above", "40")
-    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0, ["window.max_above=40"])
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 40.0,
+                                                            [mode, "window.max_above=40"])
     got = fields("--max-above", "40")
-    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 0.0, [])
+    assert (got["max_above"], got["grow"], got["sets"]) == (40.0, 0.0, [mode])
     got = fields()
     assert (got["above"], got["max_above"], got["grow"]) == (15.0, 60.0, 0.0)
     out = tmp_path / "refused"
@@ -413,6 +417,32 @@ sys.exit(status if "--wait" in args else 0)
 """
 
 
+def test_a_search_runs_in_the_sweep_precision_and_a_begun_one_goes_on_in_its_own(
+        tmp_path: Path, base: Path) -> None:
+    """`dkt-sweep bisect` on a scene that names no precision says it runs in single_arith and
+    puts lbm.precision=single_arith into every run's command; a bisection whose directory was
+    begun without it (as by an earlier version: bisect.json's --set list has no precision) goes
+    on in the program's default, says so, and runs nothing again."""
+    mpiexec = stand_in(
+        tmp_path / "mpiexec", '#!/bin/bash\n[ "$1" = --version ] && exit 0\nshift 2\nexec "$@"\n'
+    )
+    env = {**os.environ, "MPIEXEC": str(mpiexec), "MPIEXEC_PREFLAGS": ""}
+    out = tmp_path / "b"
+    proc = sweep_cli(*fake_bisect(base, out), env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "precision: lbm.precision = single_arith, the fastest mode" in proc.stdout
+    plan = list(csv.DictReader((out / "runs.csv").open()))
+    assert plan and all("--set lbm.precision=single_arith" in r["command"] for r in plan)
+    old = tmp_path / "old"
+    sweep.bisect(settings(base, old, tol=0.05), 2, FakeLaunch())
+    before = (old / "runs.csv").read_text()
+    proc = sweep_cli(*fake_bisect(base, old), env=env)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert f"precision: lbm.precision = double, as the runs {old} already holds" in proc.stdout
+    assert not re.findall(r"^done ", proc.stdout, flags=re.M), proc.stdout
+    assert (old / "runs.csv").read_text() == before
+
+
 def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -> None:
     """--slurm: each step is one `sbatch --wait --array=<rows of this step>` of DIR/sweep.slurm
     (written by slurm_script with --ntasks, --time, --partition), whose tasks run their rows'
@@ -456,8 +486,9 @@ def test_slurm_mode_submits_each_step_as_one_array(tmp_path: Path, base: Path) -
 def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
     """A real bisection: input/case2.nml at 6 spacings per smaller diameter, no fields, to its
     t_end of 8 s (t* = 59: the rules' verdicts at this end time, a check of the machinery,
-    not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time, windows up to 120 D_1
-    (under a minute on 2 cores). D_h = 2 kisses once, and the tumble throws the smaller disk
+    not a map), across D_h/D_1 in [2, 5] to 1.5 with 2 runs at a time, windows of fixed length
+    (window.max_above = 0, so that the escapes the rules handle happen) up to 120 D_1 (under a
+    minute on 2 cores). D_h = 2 kisses once, and the tumble throws the smaller disk
     aside: out of line at 8 s (not settled), it runs to 16 and 32 s, leaving windows of 15,
     30 and 60 D_1 as the pair separates, and settles `once` in line at 32 s. At 5 the upper
     disk leaves the 15-D_1 window, so the point is run again with window.above = 30, where it
@@ -484,6 +515,8 @@ def test_real_bisection_of_a_coarse_scene(tmp_path: Path) -> None:
         "lbm.cells_per_diameter=6",
         "--set",
         "output.field_interval=0",
+        "--set",
+        "window.max_above=0",
         "--exe",
         EXE,
         "--out",

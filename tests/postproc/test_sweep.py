@@ -68,7 +68,9 @@ def test_value_lists_and_inclusive_ranges() -> None:
 def test_plan_writes_one_row_per_combination(tmp_path: Path, base: Path) -> None:
     """plan: runs.csv holds one row per (gamma, D_h/D_1) combination, with its own output
     directory <out>/<id> and the command `EXE BASE --set pair.gamma=G --set pair.dh=H --set
-    <pass-through>... --set output.dir=<out>/<id>`."""
+    <pass-through>... --set lbm.precision=single_arith --set output.dir=<out>/<id>`: a scene
+    and --set list that name no precision run in the fastest mode within the sweep bound, and
+    plan says so; one that names it keeps it."""
     out = tmp_path / "sw"
     proc = sweep_cli("plan", base, "--gamma", "1:2:0.5", "--dh", "2,4", "--set",
                      "lbm.cells_per_diameter=8", "--set", "run.t_end=0.3", "--out", out,
@@ -86,7 +88,16 @@ def test_plan_writes_one_row_per_combination(tmp_path: Path, base: Path) -> None
             "/opt/dkt/dktlbm", str(base.resolve()),
             "--set", f"pair.gamma={g:g}", "--set", f"pair.dh={h:g}",
             "--set", "lbm.cells_per_diameter=8", "--set", "run.t_end=0.3",
-            "--set", f"output.dir={run_dir}"]
+            "--set", "lbm.precision=single_arith", "--set", f"output.dir={run_dir}"]
+    assert "precision: lbm.precision = single_arith, the fastest mode" in proc.stdout
+    given = tmp_path / "given"
+    proc = sweep_cli("plan", base, "--gamma", "1", "--dh", "2", "--set", "lbm.precision=double",
+                     "--out", given, "--exe", "/opt/dkt/dktlbm")
+    assert proc.returncode == 0, proc.stderr
+    (row,) = read_csv(given / "runs.csv")
+    assert shlex.split(row["command"]).count("lbm.precision=double") == 1
+    assert "lbm.precision=single_arith" not in row["command"]
+    assert "precision: lbm.precision = double (given)" in proc.stdout
 
 
 def test_plan_without_lists_is_one_run_with_the_scene_values(tmp_path: Path,
@@ -102,7 +113,8 @@ def test_plan_without_lists_is_one_run_with_the_scene_values(tmp_path: Path,
     assert (row["gamma"], row["dh"]) == ("2", "6")
     args = shlex.split(row["command"])
     assert args[0] == sweep.default_exe()
-    assert "pair.gamma=2" not in args and args.count("--set") == 2
+    assert "pair.gamma=2" not in args and args.count("--set") == 3
+    assert "lbm.precision=single_arith" in args
 
 
 def test_plan_refuses_a_missing_scene_and_bad_lists(tmp_path: Path, base: Path) -> None:
@@ -312,10 +324,10 @@ def test_collect_counts_settled_unsettled_and_escapes_and_says_what_next(
     grown = f"{out}_a60"
     plans = [ln.strip() for ln in lines if ln.startswith("  dkt-sweep plan ")]
     assert plans == [
-        f"dkt-sweep plan {base} --gamma 2 --dh 2 --set window.above=15 --set run.t_end=6 "
-        f"--out {later}",
+        f"dkt-sweep plan {base} --gamma 2 --dh 2 --set window.above=15 "
+        f"--set lbm.precision=single_arith --set run.t_end=6 --out {later}",
         f"dkt-sweep plan {base} --gamma 2 --dh 4 --set run.t_end=3 --set window.above=15 "
-        f"--set window.max_above=60 --out {grown}"], lines
+        f"--set lbm.precision=single_arith --set window.max_above=60 --out {grown}"], lines
     for new in (later, grown):
         assert f"  dkt-sweep run --out {new} --jobs N" in lines
         assert f"  dkt-sweep collect --out {out} --with {new}" in lines
@@ -345,6 +357,28 @@ def test_collect_counts_settled_unsettled_and_escapes_and_says_what_next(
 
 UHLMANN_SETS = ["lbm.dx=0.025", "lbm.tau=0.52", "run.t_end=0.05",
                 "output.field_interval=0.025", "output.series_interval=0.005"]
+
+
+def test_an_escape_from_the_default_growing_window_is_rerun_in_twice_its_limit(
+        tmp_path: Path, base: Path) -> None:
+    """A run of the default window.max_above = -1 whose particle still left the window: its run
+    file states the rows its window could reach (/run ny_max = 500 of ny = 300, dx = 0.01 cm,
+    d1 = 0.2 cm: 10 D_1 beyond window.above = 15), so collect plans it again in a window of
+    twice that limit, 2 x 25 = 50 D_1, not in 4 x 15 = 60 taken blindly (smaller or larger
+    than the limit the run already had). A file without ny_max, or a run with
+    window.max_above = 0, keeps 4 x window.above."""
+    out = tmp_path / "sw"
+    assert sweep_cli("plan", base, "--gamma", "2", "--dh", "4", "--set", "window.above=15",
+                     "--no-check", "--out", out).returncode == 0
+    (run,) = sweep.read_plan(out)
+    syn.write_run(run.h5, syn.SHAPES["once"], fields=False)
+    set_stop_reason(run.h5, "window_escape")
+    with h5py.File(run.h5, "a") as f:
+        f["run"].attrs["ny_max"] = np.int32(500)
+        f["run"].attrs["d1"] = 0.2
+    lines = sweep_cli("collect", "--out", out).stdout.splitlines()
+    assert any("window.max_above=50 " in ln for ln in lines), lines
+
 
 
 def test_run_executes_the_plan_skips_finished_runs_and_reports_failures(tmp_path: Path) -> None:
