@@ -23,8 +23,10 @@ module dkt_run
                         report_performance
   use dkt_checkpoint_policy, only: checkpoint_state_t, checkpoint_resume, checkpoint_start, &
                                    checkpoint_poll, checkpoint_due, checkpoint_finish, &
-                                   checkpoint_final, checkpoint_stop_message, &
-                                   checkpoint_interrupted, input_check_i, resume_rows
+                                   checkpoint_final, checkpoint_stop_message, input_check_i, &
+                                   resume_rows
+  use dkt_stop, only: stop_t, stop_after_step, stop_set, stop_failed, stop_last, STOP_FINISHED, &
+                      STOP_WINDOW, STOP_PARTICLE, STOP_GUARD, STOP_INTERRUPTED, STOP_NONE
   implicit none
   private
   public :: run_t, run_setup, run_execute, run_finish
@@ -67,18 +69,19 @@ contains
     end if
   end subroutine run_setup
 
-  !> The time loop (docs/model.md §1–2): a step of the solver, the guards, then output,
-  !! progress and checkpoints, each one call into its own module; and how the run ends.
+  !> The time loop (docs/model.md §1–2): a step of the solver, the lattice completed when it is
+  !! read, the guards, the output with the progress line, the checkpoints, each one call into
+  !! its own module, and one decision whether the loop ends (stop_t, which the step, the guards
+  !! and the checkpoints fill); then the run ends as that decision's kind says.
   subroutine run_execute(run)
     type(run_t), intent(inout), asynchronous :: run
     type(progress_t) :: prog
+    type(stop_t) :: stop
     integer :: n
     real(wp) :: t, mach, y0
-    logical :: last, stop, writes
-    character(len=:), allocatable :: failure, placed, fast
+    character(len=:), allocatable :: placed
 
-    associate (sim => run%sim, out => run%out, chk => run%chk, lp => run%sim%lp, &
-               cfg => run%sim%cfg)
+    associate (sim => run%sim, out => run%out, chk => run%chk, lp => run%sim%lp)
       ! 4-byte arithmetic on deviations (lbm.precision = 'single_arith'): the quiescent fluid
       ! ahead of a disturbance holds deviations that decay through the subnormal range of a
       ! 4-byte real (below 1.2e-38), where every operation takes a microcode assist and a sweep
@@ -91,110 +94,156 @@ contains
       call checkpoint_start(chk)
       call report_start(prog, sim%step + 1)
       call timer_reset()
-      failure = ''
-      placed = ''
+      ! a run resumed at its last step has no step left to take: it is finished
+      call stop_set(stop, STOP_FINISHED)
       do n = sim%step + 1, lp%steps
-        call simulation_step(sim, n, failure)
+        ! the step; what it found that ends the run: a particle out of place (placed) or
+        ! faster than run.particle_speed_limit (sim%fast, both checked every step), the
+        ! window's end (sim%stopped_early), the last step
+        call simulation_step(sim, n, placed)
+        call stop_after_step(stop, placed, sim%fast, sim%stopped_early, n == lp%steps)
         t = n*lp%dt
         y0 = 0.0_wp
         if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
-        last = n == lp%steps .or. len(sim%stopped_early) > 0
-
-        ! a particle out of place or a failed guard ends the loop on every rank at once; the
-        ! output is written below. A free particle leaves the channel only when the flow has
-        ! become unstable, and then the guard's diagnosis (where, what to change) is the one
-        ! to give.
-        ! the particle speed guard is cheap (one test per particle), so it runs every step
-        ! (simulation_step, with the place check; '' when a particle is out of place)
-        fast = sim%fast
         ! the guards, the progress line and the fields read the lattice whole: the step's
         ! interior nodes first (simulation_settle)
         if (reads_lattice()) call simulation_settle(sim)
-        call timer_start(PART_GUARDS)
-        if (len(failure) > 0 .or. len(fast) > 0 .or. mod(n, cfg%run%guard_every) == 0 .or. &
-            last) then
-          placed = failure
-          call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, y0, &
-                           mach, failure)
-          if (len(failure) > 0) exit
-          failure = placed
-          if (len(failure) > 0) exit
-          failure = fast
-          if (len(failure) > 0) exit
-        end if
-        call timer_stop(PART_GUARDS)
-        call timer_start(PART_OUTPUT)
-        if (.not. last) call output_scheduled(out, sim, n)
-        call timer_stop(PART_OUTPUT)
-        call timer_start(PART_GUARDS)
-        if (cfg%run%progress_every > 0) then
-          if (mod(n, cfg%run%progress_every) == 0 .and. .not. last) then
-            ! the progress line reports the current Mach number, which the guard measures
-            if (mod(n, cfg%run%guard_every) /= 0) then
-              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, &
-                               y0, mach, failure)
-              if (len(failure) > 0) exit
-            end if
-            call report_progress(sim, prog, n, mach)
-          end if
-        end if
-        call timer_stop(PART_GUARDS)
-        call timer_start(PART_CHECKPOINTS)
-        call checkpoint_poll(chk, sim, last, writes)
-        call timer_stop(PART_CHECKPOINTS)
-        if (writes) call simulation_settle(sim)
-        call timer_start(PART_CHECKPOINTS)
-        call checkpoint_due(chk, out, sim, last, stop)
-        call timer_stop(PART_CHECKPOINTS)
-        if (stop .or. last) exit
+        call guards()
+        ! a failure ends the step here, on every rank at once; the last step's output is the
+        ! run's end's (below)
+        if (.not. stop%now) call output_and_progress()
+        if (.not. stop_failed(stop)) call checkpoints()
+        if (stop%now) exit
       end do
-      call checkpoint_finish(chk)
-      ! whatever ended the loop, what follows writes the lattice of this step
-      call simulation_settle(sim)
-      n = sim%step
-      if (len(failure) > 0) then
-        ! every rank saw the same failure: write the last step's state (what went wrong is
-        ! in it), close the output, then stop with the message
-        if (failure == placed) then
-          call output_set_stop_reason(out, 'particle: '//failure)
-        else
-          call output_set_stop_reason(out, 'guard: '//failure)
-        end if
-        call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
-                      '; the output holds the run up to this step')
-        call output_close(out, sim)
-        call fatal_all(failure, EXIT_RUNTIME)
-      end if
-      call report_performance(sim, prog, n)
-      if (checkpoint_interrupted(chk)) then
-        call checkpoint_stop_message(chk, sim)
-        ! the output up to this step; a resumed run cuts back what the checkpoint has not
-        call output_close(out, sim)
-        return
-      end if
-      call output_set_stop_reason(out, 'finished')
-      if (len(sim%stopped_early) > 0) then
-        call output_set_stop_reason(out, 'window_escape')
-        call warn(sim%stopped_early)
-      end if
-      call output_final(out, sim)
-      call checkpoint_final(chk, out, sim)
-      call output_close(out, sim)
-      call output_mark_finished(sim)
+      call run_end(run, stop, prog)
     end associate
   contains
     !> Whether the guards, the progress line or the scheduled fields read the lattice after
-    !! step n (as the loop decides each of them below).
+    !! step n (as guards and output_and_progress decide each of them).
     logical function reads_lattice()
       associate (cfg => run%sim%cfg)
-        reads_lattice = len(failure) > 0 .or. len(fast) > 0 .or. &
-                        mod(n, cfg%run%guard_every) == 0 .or. last
+        reads_lattice = guards_due()
         if (cfg%run%progress_every > 0) &
           reads_lattice = reads_lattice .or. mod(n, cfg%run%progress_every) == 0
         reads_lattice = reads_lattice .or. output_reads_lattice(run%sim, n)
       end associate
     end function reads_lattice
+
+    !> Whether the fluid guards check step n: every run.guard_every steps, and after any step
+    !! that ends the loop, so that a failed step's message is the guard's when the flow has
+    !! become unstable (a free particle leaves the channel only then, and the guard's
+    !! diagnosis, where and what to change, is the one to give).
+    logical function guards_due()
+      guards_due = stop%kind /= STOP_NONE .or. mod(n, run%sim%cfg%run%guard_every) == 0
+    end function guards_due
+
+    !> The fluid guards (a non-finite value, the Mach limit) when due; a failure replaces the
+    !! step's decision. One part of the time per part (PART_GUARDS).
+    subroutine guards()
+      character(len=:), allocatable :: failure
+      call timer_start(PART_GUARDS)
+      if (guards_due()) then
+        associate (sim => run%sim, lp => run%sim%lp)
+          call guard_check(sim%dom, sim%f, lp%force_lb, sim%cfg%run%mach_limit, n, t, lp%dx, &
+                           y0, mach, failure)
+        end associate
+        if (len(failure) > 0) call stop_set(stop, STOP_GUARD, failure)
+      end if
+      call timer_stop(PART_GUARDS)
+    end subroutine guards
+
+    !> The series, fields and tables on their schedule, then the progress line, which reports
+    !! the current Mach number: the guards' of this step, or measured here when they did not
+    !! run (a failure then ends the loop as theirs does). One part (PART_OUTPUT): what the
+    !! output schedule and run.progress_every cost.
+    subroutine output_and_progress()
+      character(len=:), allocatable :: failure
+      call timer_start(PART_OUTPUT)
+      call output_scheduled(run%out, run%sim, n)
+      associate (sim => run%sim, lp => run%sim%lp, cfg => run%sim%cfg)
+        if (cfg%run%progress_every > 0) then
+          if (mod(n, cfg%run%progress_every) == 0) then
+            if (mod(n, cfg%run%guard_every) /= 0) then
+              call guard_check(sim%dom, sim%f, lp%force_lb, cfg%run%mach_limit, n, t, lp%dx, &
+                               y0, mach, failure)
+              if (len(failure) > 0) call stop_set(stop, STOP_GUARD, failure)
+            end if
+            if (.not. stop%now) call report_progress(sim, prog, n, mach)
+          end if
+        end if
+      end associate
+      call timer_stop(PART_OUTPUT)
+    end subroutine output_and_progress
+
+    !> The checkpoint policy: the clock and signal flags of the step before, a checkpoint when
+    !! one is due (on the completed lattice), the flags of this step; a signal or the wall
+    !! limit ends the loop after its checkpoint. One part (PART_CHECKPOINTS); the lattice's
+    !! completion is the links' part, where simulation_settle counts it.
+    subroutine checkpoints()
+      logical :: last, writes, interrupted
+      last = stop_last(stop)
+      call timer_start(PART_CHECKPOINTS)
+      call checkpoint_poll(run%chk, run%sim, last, writes)
+      if (writes) then
+        call timer_stop(PART_CHECKPOINTS)
+        call simulation_settle(run%sim)
+        call timer_start(PART_CHECKPOINTS)
+      end if
+      call checkpoint_due(run%chk, run%out, run%sim, last, interrupted)
+      if (interrupted) call stop_set(stop, STOP_INTERRUPTED)
+      call timer_stop(PART_CHECKPOINTS)
+    end subroutine checkpoints
   end subroutine run_execute
+
+  !> How the run ends, as the loop's last decision says (docs/running.md, "When a run
+  !! stops"): a failure writes the last step's state, closes the output and stops every rank
+  !! with its message; a signal or the wall limit closes the output after its checkpoint; the
+  !! last step and the window's end write the output of a finished run.
+  subroutine run_end(run, stop, prog)
+    type(run_t), intent(inout), asynchronous :: run
+    type(stop_t), intent(in) :: stop
+    type(progress_t), intent(in) :: prog
+    integer :: n
+    associate (sim => run%sim, out => run%out, chk => run%chk, lp => run%sim%lp)
+      call checkpoint_finish(chk)
+      ! whatever ended the loop, what follows writes the lattice of this step
+      call simulation_settle(sim)
+      n = sim%step
+      select case (stop%kind)
+      case (STOP_PARTICLE, STOP_GUARD)
+        ! every rank saw the same failure: write the last step's state (what went wrong is
+        ! in it), close the output, then stop with the message
+        if (stop%kind == STOP_PARTICLE) then
+          call output_set_stop_reason(out, 'particle: '//stop%message)
+        else
+          call output_set_stop_reason(out, 'guard: '//stop%message)
+        end if
+        call log_line('stopped by a guard after step '//itoa(n)//' of '//itoa(lp%steps)// &
+                      '; the output holds the run up to this step')
+        call output_close(out, sim)
+        call fatal_all(stop%message, EXIT_RUNTIME)
+      case (STOP_INTERRUPTED)
+        ! a signal or the wall limit, after the checkpoint: the output up to this step (a
+        ! resumed run cuts back what the checkpoint has not)
+        call report_performance(sim, prog, n)
+        call checkpoint_stop_message(chk, sim)
+        call output_close(out, sim)
+      case default
+        ! the last step, or the window's end: the output of a finished run
+        call report_performance(sim, prog, n)
+        if (stop%kind == STOP_WINDOW) then
+          call output_set_stop_reason(out, 'window_escape')
+          call warn(stop%message)
+        else
+          call output_set_stop_reason(out, 'finished')
+        end if
+        call output_final(out, sim)
+        call checkpoint_final(chk, out, sim)
+        call output_close(out, sim)
+        call output_mark_finished(sim)
+      end select
+    end associate
+  end subroutine run_end
 
   !> Close what is still open and free the lattices and the slab.
   subroutine run_finish(run)

@@ -17,8 +17,8 @@ module dkt_timers
   integer, parameter :: PART_LINKS = 2 !! bounce-back (E6), interior nodes, link search
   integer, parameter :: PART_PARTICLES = 3 !! force sums (E7), motion (E8–E11), the pair's sample
   integer, parameter :: PART_WINDOW = 4 !! the window's shift and growth
-  integer, parameter :: PART_GUARDS = 5 !! the guards and the progress line
-  integer, parameter :: PART_OUTPUT = 6 !! series, fields and tables on their schedule
+  integer, parameter :: PART_GUARDS = 5 !! the guards: the fluid's, the particles' places and speeds
+  integer, parameter :: PART_OUTPUT = 6 !! series, fields, tables on their schedule; progress line
   integer, parameter :: PART_CHECKPOINTS = 7 !! checkpoints, the clock and signal checks
   integer, parameter :: N_PARTS = 7
 
