@@ -16,7 +16,7 @@ module dkt_mrt_half
   use iso_fortran_env, only: int16
   use dkt_kinds, only: sp
   use dkt_store, only: lattice_t
-  use dkt_half, only: half_unpack, half_pack
+  use dkt_half, only: half_unpack, half_unpack_row, half_pack_row
   use dkt_mrt_sp, only: collision_sp_t, rows_from_rows_sp
   implicit none
   private
@@ -34,9 +34,7 @@ module dkt_mrt_half
     integer(int16), allocatable :: swap(:, :)    !! room for a row while kept_up stands in for it
   end type half_sweep_t
 
-  integer, parameter :: up3(3) = [2, 5, 6]  !! the populations with c_y = +1
-  integer, parameter :: own3(3) = [0, 1, 3] !! those a node pulls from its own row
-  integer, parameter :: dn3(3) = [4, 7, 8]  !! those with c_y = -1, pulled from row j+1
+  integer, parameter :: up3(3) = [2, 5, 6] !! the populations with c_y = +1
 
 contains
 
@@ -84,15 +82,9 @@ contains
       dst%h(:, j2 + 1, :) = ws%kept_up
     end if
     do j = j1, j2
-      do k = 1, 3
-        call half_unpack(src%h, nxp, nyl, j, own3(k), 0, nx + 1, ws%pulled(:, own3(k)))
-        call half_unpack(src%h, nxp, nyl, j + 1, dn3(k), 0, nx + 1, ws%pulled(:, dn3(k)))
-        call half_unpack(src%h, nxp, nyl, j, up3(k), 0, nx + 1, ws%saved(:, k))
-      end do
+      call half_unpack_row(src%h, nxp, nyl, j, 0, nx + 1, ws%pulled, ws%saved)
       call rows_from_rows_sp(c, ws%pulled, ws%below, ws%post, nxp, nx)
-      do k = 0, 8
-        call half_pack(ws%post(:, k), dst%h, nxp, nyl, j, k, 1, nx)
-      end do
+      call half_pack_row(ws%post, dst%h, nxp, nyl, j, 1, nx)
       ! old row j's populations 2, 5, 6 are the next row's below: swap the buffers, not copy
       call move_alloc(ws%below, spare)
       call move_alloc(ws%saved, ws%below)
