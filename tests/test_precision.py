@@ -1,5 +1,6 @@
 """lbm.precision: populations stored in 4 bytes as f_i - w_i keep the accuracy of 8 bytes; the
-naive 4-byte f_i does not (docs/model.md §1, "Storage of the populations").
+naive 4-byte f_i does not (docs/model.md §1, "Storage of the populations"); 16-bit codes
+('half') keep it to their own rounding at lattice velocities of a few 1e-2 (below, U_H).
 
 Every error is measured against a closed-form solution computed here from the inputs, never
 against an earlier output of the program. The bounds come from the round-off of the storage:
@@ -164,8 +165,8 @@ def test_half_poiseuille_is_within_its_rounding_of_double(tmp_path: Path) -> Non
     rounding of every population is the same every step, so it biases the profile instead of
     averaging out, by up to U_H per step over the relaxation time T: measured 0.0165 relative
     L2 (0.28 U_H T, T = 243 steps; double 2.8e-7, single_arith 3.6e-6). The test allows
-    U_H T / 2 = 0.030; an 8-bit significand (bfloat16, U = 2^-8: 16 times the rounding) would
-    be about 0.26, and truncation instead of rounding to nearest biases by U_H T itself."""
+    U_H T / 2 = 0.030; the same format with a 7-bit mantissa (bfloat16's precision, 16 times
+    the rounding) gives 0.22 and fails."""
     double, relax = poiseuille_fast(tmp_path, "double")
     half, _ = poiseuille_fast(tmp_path, "half")
     bound = 0.5 * U_H * relax
@@ -179,8 +180,8 @@ def test_half_taylor_green_is_within_its_rounding_of_double(tmp_path: Path) -> N
     """Taylor-Green decay at u0 = 0.031 (lattice units): the velocity field of 'half' differs
     from double's by a relative L2 distance of 2.2e-4 (0.9 U_H; single_arith: 6e-8), and its
     error against the analytic decay is double's to 2e-5 (3.629e-3 against 3.647e-3). The
-    test allows a distance of 4 U_H = 9.8e-4; an 8-bit significand (16 times the rounding)
-    would be about 14 U_H."""
+    test allows a distance of 4 U_H = 9.8e-4; the same format with a 7-bit mantissa
+    (bfloat16's precision) gives 24 U_H and fails."""
     fields = {}
     for precision in ("double", "half"):
         taylor_green_at(tmp_path, precision)
