@@ -83,13 +83,17 @@ contains
       ! the ghost at (0, j) is pulled by (1, j + ey): it holds f*_opp there (bounce-back)
       do k = 1, 3
         i = plus_x(k)
-        if (f%single) then
+        if (f%half) then
+          f%h(0, 1 - ey(i):nyl - ey(i), i) = f%h(1, 1:nyl, opp(i))
+        else if (f%single) then
           f%s(0, 1 - ey(i):nyl - ey(i), i) = f%s(1, 1:nyl, opp(i))
         else
           f%d(0, 1 - ey(i):nyl - ey(i), i) = f%d(1, 1:nyl, opp(i))
         end if
         i = minus_x(k)
-        if (f%single) then
+        if (f%half) then
+          f%h(nx + 1, 1 - ey(i):nyl - ey(i), i) = f%h(nx, 1:nyl, opp(i))
+        else if (f%single) then
           f%s(nx + 1, 1 - ey(i):nyl - ey(i), i) = f%s(nx, 1:nyl, opp(i))
         else
           f%d(nx + 1, 1 - ey(i):nyl - ey(i), i) = f%d(nx, 1:nyl, opp(i))
@@ -119,7 +123,10 @@ contains
     integer, intent(in) :: nx, j1, j2
     integer :: k
     do k = 1, 3
-      if (f%single) then
+      if (f%half) then
+        f%h(0, j1:j2, plus_x(k)) = f%h(nx, j1:j2, plus_x(k))
+        f%h(nx + 1, j1:j2, minus_x(k)) = f%h(1, j1:j2, minus_x(k))
+      else if (f%single) then
         f%s(0, j1:j2, plus_x(k)) = f%s(nx, j1:j2, plus_x(k))
         f%s(nx + 1, j1:j2, minus_x(k)) = f%s(1, j1:j2, minus_x(k))
       else
@@ -144,12 +151,16 @@ contains
           x = xg + ex(i)
           if (bc%periodic_x) x = modulo(x - 1, nx) + 1
           if (x < 1 .or. x > nx) cycle
-          if (f%single) then
+          if (f%half) then
+            f%h(xg, jg, i) = f%h(x, jb, opp(i))
+          else if (f%single) then
             f%s(xg, jg, i) = f%s(x, jb, opp(i))
           else
             f%d(xg, jg, i) = f%d(x, jb, opp(i))
           end if
         end do
+      else if (f%half) then
+        f%h(1:nx, jg, i) = f%h(1:nx, jb, i)
       else if (f%single) then
         f%s(1:nx, jg, i) = f%s(1:nx, jb, i)
       else

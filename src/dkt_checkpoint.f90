@@ -13,10 +13,11 @@
 !>   refuses to continue another run's file; absent in checkpoints of earlier versions;
 !> - /precision: how the populations are stored (lbm.precision): 0 'double', 1 'single' (f_i - w_i
 !>   in 4 bytes), 2 'single_unshifted', 3 'single_arith' (stored as 1, collided in 4 bytes: a
-!>   resume across 1 and 3 is refused, it would not continue bit for bit); absent in checkpoints
-!>   written before single storage existed, which are 'double'. /f holds the stored values
-!>   exactly (a 4-byte value converts to 8 bytes and back without change), so a single-precision
-!>   run resumes bit for bit too;
+!>   resume across 1 and 3 is refused, it would not continue bit for bit), 4 'half' (16-bit
+!>   codes of f_i - w_i, dkt_half); absent in checkpoints written before single storage existed,
+!>   which are 'double'. /f holds the stored values exactly (a 4-byte value converts to 8 bytes
+!>   and back without change, and so does a 16-bit code, stored as the integer it is), so a
+!>   single-precision or 16-bit run resumes bit for bit too;
 !> - /f_checksum (h5py (ny, 2)): a digest of each row of /f, and /state_checksum (2): one of
 !>   every other dataset (the values of /state_int, /state_real, /particles, /episodes, /given,
 !>   /precision in this order). A digest is two sums modulo the prime 2^32 - 5 over the 32-bit
@@ -30,7 +31,7 @@
 !> scene and sane bounds), so a damaged file is refused before anything is allocated from it.
 !> The HDF5 calls are dkt_h5file's.
 module dkt_checkpoint
-  use iso_fortran_env, only: int64
+  use iso_fortran_env, only: int64, int16
   use mpi_f08, only: MPI_Comm, MPI_LOGICAL, MPI_LOR, MPI_Allreduce, MPI_Bcast, MPI_Comm_rank, &
                      MPI_INTEGER, MPI_MIN, MPI_CHARACTER, MPI_Barrier
   use hdf5, only: hsize_t
@@ -50,12 +51,12 @@ module dkt_checkpoint
             NSTATE, &
             STORAGE_NAMES
 
-  !> lbm.precision by its code in /precision (0 to 3). 'single_arith' stores what 'single'
+  !> lbm.precision by its code in /precision (0 to 4). 'single_arith' stores what 'single'
   !! stores but has its own code: its checkpoints continue bit for bit only with the 4-byte
   !! collision, so a resume with the other one is refused like any other change of precision.
-  character(len=16), parameter :: STORAGE_NAMES(0:3) = &
+  character(len=16), parameter :: STORAGE_NAMES(0:4) = &
                                   [character(len=16) :: 'double', 'single', 'single_unshifted', &
-                                                         'single_arith']
+                                                         'single_arith', 'half']
 
   integer, parameter :: NSTATE = 10 !! values of one particle's state
   integer, parameter :: NINT = 9    !! entries of /state_int
@@ -131,7 +132,9 @@ contains
       return
     end if
     allocate (buf(nx, nyl, 0:8))
-    if (f%single) then
+    if (f%half) then
+      buf = real(f%h(1:nx, 1:nyl, 0:8), wp)
+    else if (f%single) then
       buf = real(f%s(1:nx, 1:nyl, 0:8), wp)
     else
       buf = f%d(1:nx, 1:nyl, 0:8)
@@ -423,7 +426,7 @@ contains
       chk%precision = code(1)
       if (chk%precision < lbound(STORAGE_NAMES, 1) .or. &
           chk%precision > ubound(STORAGE_NAMES, 1)) what = 'a /precision of '//itoa(code(1))// &
-                                                       ' (0 to 3)'
+                                                       ' (0 to 4)'
     else if (nd /= -1) then
       what = 'a /precision that is not one integer'
     end if
@@ -523,8 +526,15 @@ contains
       if (len(pf%failed) == 0) what = row_mismatch(rows, row_digests(buf), y0)
     end if
     if (len(what) == 0 .and. len(pf%failed) == 0) what = non_finite_population(buf, y0)
+    if (len(what) == 0 .and. f%half) then
+      if (any(buf /= aint(buf) .or. buf < -32768.0_wp .or. buf > 32767.0_wp)) &
+        what = 'a population that is not a 16-bit code (lbm.precision = ''half'')'
+    end if
     if (len(what) > 0) then
       ! refused: f keeps what it held
+    else if (f%half) then
+      ! the values were 16-bit codes: the conversion back is exact
+      f%h(1:nx, 1:nyl, 0:8) = int(buf, int16)
     else if (f%single) then
       ! the values were 4-byte ones: the conversion back is exact
       f%s(1:nx, 1:nyl, 0:8) = real(buf, sp)

@@ -25,11 +25,12 @@ module dkt_choices
 
   !> lbm.precision: 8 bytes; 4 bytes holding f_i - w_i; 4 bytes holding f_i (the naive form,
   !! only there to measure what the shift buys); 4 bytes holding f_i - w_i and collided in 4
-  !! bytes too (dkt_store, dkt_mrt_sp)
+  !! bytes too (dkt_store, dkt_mrt_sp); f_i - w_i in 16-bit codes, collided in 4 bytes (dkt_half)
   character(len=*), parameter, public :: PRECISION_NAMES = &
-                                         'double single single_unshifted single_arith'
+                                         'double single single_unshifted single_arith half'
   integer, parameter, public :: PRECISION_DOUBLE = 1, PRECISION_SINGLE = 2, &
-                                PRECISION_SINGLE_UNSHIFTED = 3, PRECISION_SINGLE_ARITH = 4
+                                PRECISION_SINGLE_UNSHIFTED = 3, PRECISION_SINGLE_ARITH = 4, &
+                                PRECISION_HALF = 5
 
   !> inlet.profile: the shape of the inlet velocity across the channel
   character(len=*), parameter, public :: PROFILE_NAMES = 'uniform parabolic'

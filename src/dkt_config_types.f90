@@ -59,8 +59,8 @@ module dkt_config_types
     !> 'in_place': one lattice, swept row by row; 'two_lattice': read one, write the other
     character(len=12) :: streaming = 'in_place'
     !> population storage: 'double' (8 bytes), 'single' (f_i - w_i in 4 bytes), 'single_arith'
-    !! (stored as 'single', collided in 4 bytes) or 'single_unshifted' (f_i in 4 bytes; only to
-    !! measure what the shift buys)
+    !! (stored as 'single', collided in 4 bytes), 'half' (f_i - w_i in 16-bit codes, collided in
+    !! 4 bytes) or 'single_unshifted' (f_i in 4 bytes; only to measure what the shift buys)
     character(len=16) :: precision = 'double'
     integer :: collision_kind = 0         !! COLLISION_* of collision (config_choices)
     integer :: streaming_kind = 0         !! STREAMING_* of streaming (config_choices)
@@ -427,7 +427,9 @@ contains
     call add_choice(reg, 'lbm', 'precision', self%precision, PRECISION_NAMES, &
                     'population storage and arithmetic: 8 bytes; single: 4 bytes holding '// &
                     'f_i - w_i, collided in 8; single_arith: stored as single and collided in '// &
-                    '4 bytes as f_i - w_i; single_unshifted stores f_i in 4 bytes, only to '// &
+                    '4 bytes as f_i - w_i; half: f_i - w_i in 2 bytes (1 sign, 4 exponent, '// &
+                    '11 mantissa bits), collided in 4; single_unshifted stores f_i in 4 bytes, '// &
+                    'only to '// &
                     'measure what the shift buys, not for use')
     call add_choice(reg, 'lbm', 'streaming', self%streaming, STREAMING_NAMES, &
                     'one lattice swept in place, or two (read one, write the other); '// &

@@ -13,7 +13,9 @@
 module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
-                     MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_Alltoallv
+                     MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_Alltoallv, &
+                     MPI_INTEGER2
+  use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
   implicit none
@@ -40,6 +42,8 @@ module dkt_domain
     logical :: has_lower_end = .false. !! this slab holds global row 1 of a non-periodic channel
     logical :: has_upper_end = .false. !! this slab holds global row ny of a non-periodic channel
     real(wp), allocatable :: sbuf_up(:), sbuf_dn(:), rbuf_up(:), rbuf_dn(:)
+    !> the same for 16-bit codes (lbm.precision = 'half'), which travel as 2-byte integers
+    integer(int16), allocatable :: hbuf_up(:), hbuf_dn(:), hrbuf_up(:), hrbuf_dn(:)
     type(MPI_Request) :: req(4)
   end type domain_t
 
@@ -111,6 +115,7 @@ contains
     dom%has_lower_end = dom%rank == 0 .and. .not. periodic_y
     dom%has_upper_end = dom%rank == dom%nranks - 1 .and. .not. periodic_y
     allocate (dom%sbuf_up(3*nx), dom%sbuf_dn(3*nx), dom%rbuf_up(3*nx), dom%rbuf_dn(3*nx))
+    allocate (dom%hbuf_up(3*nx), dom%hbuf_dn(3*nx), dom%hrbuf_up(3*nx), dom%hrbuf_dn(3*nx))
   end subroutine domain_init
 
   !> The slabs of the same ranks over ny rows (a window that grows, docs/model.md §5): this
@@ -129,7 +134,8 @@ contains
   !! old%ny): each global row goes to the rank that holds it in `new`, in one MPI_Alltoallv.
   !! Both sides count every message from the two row counts alone (domain_rows_for), so the
   !! sizes agree on uneven splits. Rows beyond old%ny are not touched: the caller fills them.
-  !! Stored values travel as they are (a 4-byte value in the 8-byte buffer converts exactly).
+  !! Stored values travel as they are (a 4-byte value or a 16-bit code in the 8-byte buffer
+  !! converts exactly).
   subroutine domain_move_rows(old, new, src, dst)
     type(domain_t), intent(in) :: old, new
     type(lattice_t), intent(in) :: src
@@ -157,7 +163,9 @@ contains
     m = 0
     do j = 1, old%nyl
       do k = 0, 8
-        if (src%single) then
+        if (src%half) then
+          sbuf(m + 1:m + nx) = real(src%h(1:nx, j, k), wp)
+        else if (src%single) then
           sbuf(m + 1:m + nx) = real(src%s(1:nx, j, k), wp)
         else
           sbuf(m + 1:m + nx) = src%d(1:nx, j, k)
@@ -172,7 +180,9 @@ contains
     m = 0
     do j = lo - new%y0, hi - new%y0
       do k = 0, 8
-        if (dst%single) then
+        if (dst%half) then
+          dst%h(1:nx, j, k) = int(rbuf(m + 1:m + nx), int16)
+        else if (dst%single) then
           dst%s(1:nx, j, k) = real(rbuf(m + 1:m + nx), sp)
         else
           dst%d(1:nx, j, k) = rbuf(m + 1:m + nx)
@@ -211,13 +221,24 @@ contains
   !! c_y = +1 from row nyl go up into the upper neighbour's row 0, c_y = -1 from row 1 go down
   !! into the lower neighbour's row nyl+1. Columns 1..nx only; ghost columns are set locally.
   !! The stored values travel as they are: a 4-byte value in the 8-byte buffer converts exactly
-  !! both ways.
+  !! both ways; 16-bit codes travel in 2-byte buffers, in the same messages.
   subroutine halo_start(dom, f)
     type(domain_t), intent(inout) :: dom
     type(lattice_t), intent(in) :: f
     integer :: k, nx, n
     nx = dom%nx
     n = 3*nx
+    if (f%half) then
+      call MPI_Irecv(dom%hrbuf_up, n, MPI_INTEGER2, dom%below, TAG_UP, dom%comm, dom%req(1))
+      call MPI_Irecv(dom%hrbuf_dn, n, MPI_INTEGER2, dom%above, TAG_DOWN, dom%comm, dom%req(2))
+      do k = 1, 3
+        dom%hbuf_up((k - 1)*nx + 1:k*nx) = f%h(1:nx, dom%nyl, up_pops(k))
+        dom%hbuf_dn((k - 1)*nx + 1:k*nx) = f%h(1:nx, 1, down_pops(k))
+      end do
+      call MPI_Isend(dom%hbuf_up, n, MPI_INTEGER2, dom%above, TAG_UP, dom%comm, dom%req(3))
+      call MPI_Isend(dom%hbuf_dn, n, MPI_INTEGER2, dom%below, TAG_DOWN, dom%comm, dom%req(4))
+      return
+    end if
     call MPI_Irecv(dom%rbuf_up, n, mpi_wp, dom%below, TAG_UP, dom%comm, dom%req(1))
     call MPI_Irecv(dom%rbuf_dn, n, mpi_wp, dom%above, TAG_DOWN, dom%comm, dom%req(2))
     do k = 1, 3
@@ -242,7 +263,9 @@ contains
     call MPI_Waitall(4, dom%req, MPI_STATUSES_IGNORE)
     if (dom%below /= MPI_PROC_NULL) then
       do k = 1, 3
-        if (f%single) then
+        if (f%half) then
+          f%h(1:nx, 0, up_pops(k)) = dom%hrbuf_up((k - 1)*nx + 1:k*nx)
+        else if (f%single) then
           f%s(1:nx, 0, up_pops(k)) = real(dom%rbuf_up((k - 1)*nx + 1:k*nx), sp)
         else
           f%d(1:nx, 0, up_pops(k)) = dom%rbuf_up((k - 1)*nx + 1:k*nx)
@@ -251,7 +274,9 @@ contains
     end if
     if (dom%above /= MPI_PROC_NULL) then
       do k = 1, 3
-        if (f%single) then
+        if (f%half) then
+          f%h(1:nx, dom%nyl + 1, down_pops(k)) = dom%hrbuf_dn((k - 1)*nx + 1:k*nx)
+        else if (f%single) then
           f%s(1:nx, dom%nyl + 1, down_pops(k)) = real(dom%rbuf_dn((k - 1)*nx + 1:k*nx), sp)
         else
           f%d(1:nx, dom%nyl + 1, down_pops(k)) = dom%rbuf_dn((k - 1)*nx + 1:k*nx)

@@ -8,7 +8,7 @@ module dkt_kinds
 
   integer, parameter :: wp = real64 !! working precision of every field and particle quantity
   integer, parameter :: sp = real32 !! populations with lbm.precision = 'single' (and its arithmetic
-  !! with 'single_arith')
+  !! with 'single_arith' and 'half')
   integer, parameter :: ip = int32  !! default integer kind for indices
   integer, parameter :: i8 = int64  !! counters that may exceed 2**31 (cell updates, bytes)
   type(MPI_Datatype), parameter :: mpi_wp = MPI_DOUBLE_PRECISION !! MPI type matching wp

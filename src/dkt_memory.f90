@@ -32,7 +32,7 @@ contains
   !> Bytes one rank needs for its slab, the one formula behind the start-up report and the
   !! memory check: (1) the lattice (one with lbm.streaming = 'in_place', two otherwise), 9
   !! populations per padded node (nxp columns, nyl rows and two halo rows) of 8 bytes, or 4 with
-  !! lbm.precision = 'single' or 'single_arith';
+  !! lbm.precision = 'single' or 'single_arith', or 2 with 'half';
   !! (2) the particles, counted as if the slab held all of them (a slab holds its own and the
   !! ghosts within reach, and every rank reads the whole scene): per particle its state three
   !! times over (held, before the move, the merge of a message; 128 bytes each) and two message

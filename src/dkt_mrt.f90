@@ -5,7 +5,8 @@
 !> (lbm.streaming = 'two_lattice') or, row by row, into the same one ('in_place', docs/design.md).
 !> The populations are stored in 8 or 4 bytes (lbm.precision, dkt_store) and collided in 8,
 !> except with 'single_arith', whose 4-byte deviations are collided in 4 bytes (dkt_mrt_sp) with
-!> 4-byte row buffers. The MRT transform is written out (orthogonal rows, M^-1 = M^T D^-1)
+!> 4-byte row buffers, and with 'half', whose 16-bit codes are decoded, collided in 4 bytes and
+!> encoded by dkt_mrt_half. The MRT transform is written out (orthogonal rows, M^-1 = M^T D^-1)
 !> rather than a 9x9 product, and the inner loop runs along x so that it vectorises; every node
 !> routine is inlined into its loop, with the collision model and the force switch as literals.
 !> A uniform body force enters through Guo's forcing term in moment space; a scene without one
@@ -15,6 +16,7 @@ module dkt_mrt
   use dkt_lattice, only: w, e3_heat_flux_rate
   use dkt_store, only: lattice_t
   use dkt_mrt_sp, only: collision_sp_t, collision_sp_set, rows_sp, rows_in_place_sp
+  use dkt_mrt_half, only: half_sweep_t, half_sweep_init, half_sweep_rows
   implicit none
   private
   public :: collision_t, collision_init, stream_collide, collision_describe, e3_heat_flux_rate, &
@@ -48,6 +50,7 @@ module dkt_mrt
     real(sp), allocatable :: swap_s(:, :)
     !> below, saved, o13 and kept_dn in 4 bytes, holding deviations, for 'single_arith'
     real(sp), allocatable :: below4(:, :), saved4(:, :), o13_4(:, :), kept_dn4(:, :)
+    type(half_sweep_t) :: h !! the row buffers of 'half'
   end type sweep_t
 
   integer, parameter :: up3(3) = [2, 5, 6] !! the populations with c_y = +1
@@ -137,6 +140,7 @@ contains
     ws%kept_dn = 0.0_wp
     ws%kept_up_d = 0.0_wp
     ws%kept_up_s = 0.0_sp
+    call half_sweep_init(ws%h, nxp)
   end subroutine sweep_init
 
   !> Stream and collide rows j1..j2 from src into dst: two lattices when dst is not src, in
@@ -160,6 +164,11 @@ contains
     real(sp), allocatable :: spare4(:, :)
     integer :: j, nxp, k
     if (j2 < j1) return
+    if (src%half) then
+      call half_sweep_rows(coll%c4, ws%h, src, dst, nx, nyl, j1, j2, opt(keep), opt(below_kept), &
+                           opt(above_kept))
+      return
+    end if
     sh = 0.0_wp
     if (src%shifted) sh = w
     if (src%single) then

@@ -22,7 +22,8 @@ module dkt_mrt_sp
   use dkt_kinds, only: wp, sp
   implicit none
   private
-  public :: collision_sp_t, collision_sp_set, collide_sp, rows_sp, rows_in_place_sp
+  public :: collision_sp_t, collision_sp_set, collide_sp, rows_sp, rows_in_place_sp, &
+            rows_from_rows_sp
 
   !> The rates and the force of dkt_mrt's collision_t in 4 bytes, with the constant factors
   !! of the MRT relaxation and of Guo's term taken once.
@@ -137,6 +138,67 @@ contains
       saved(nx + 1, k) = f(nx + 1, j, up3(k))
     end do
   end subroutine rows_in_place_sp
+
+  !> One row from decoded rows, for lbm.precision = 'half' (dkt_mrt_half): src holds the
+  !! deviations a row pulls from its own row (0, 1, 3) and from the row above (4, 7, 8) at those
+  !! population indices, below those of the row below (2, 5, 6); dst receives the nine
+  !! post-collision deviations of columns 1..nx. Each node computes what node_sp computes.
+  subroutine rows_from_rows_sp(c, src, below, dst, nxp, nx)
+    type(collision_sp_t), intent(in) :: c
+    integer, intent(in) :: nxp, nx
+    real(sp), intent(in) :: src(0:nxp - 1, 0:8), below(0:nxp - 1, 3)
+    real(sp), intent(inout) :: dst(0:nxp - 1, 0:8)
+    integer :: x
+    if (c%bgk) then
+      if (c%forced) then
+        do concurrent(x=1:nx)
+          call node_from_rows_sp(c, .true., .true., src, below, dst, nxp, x)
+        end do
+      else
+        do concurrent(x=1:nx)
+          call node_from_rows_sp(c, .true., .false., src, below, dst, nxp, x)
+        end do
+      end if
+    else
+      if (c%forced) then
+        do concurrent(x=1:nx)
+          call node_from_rows_sp(c, .false., .true., src, below, dst, nxp, x)
+        end do
+      else
+        do concurrent(x=1:nx)
+          call node_from_rows_sp(c, .false., .false., src, below, dst, nxp, x)
+        end do
+      end if
+    end if
+  end subroutine rows_from_rows_sp
+
+  pure subroutine node_from_rows_sp(c, bgk, forced, src, below, dst, nxp, x)
+    type(collision_sp_t), intent(in) :: c
+    logical, intent(in) :: bgk, forced
+    integer, intent(in) :: nxp, x
+    real(sp), intent(in) :: src(0:nxp - 1, 0:8), below(0:nxp - 1, 3)
+    real(sp), intent(inout) :: dst(0:nxp - 1, 0:8)
+    real(sp) :: d0, d1, d2, d3, d4, d5, d6, d7, d8
+    d0 = src(x, 0)
+    d1 = src(x - 1, 1)
+    d2 = below(x, 1)
+    d3 = src(x + 1, 3)
+    d4 = src(x, 4)
+    d5 = below(x - 1, 2)
+    d6 = below(x + 1, 3)
+    d7 = src(x + 1, 7)
+    d8 = src(x - 1, 8)
+    call collide_sp(c, bgk, forced, d0, d1, d2, d3, d4, d5, d6, d7, d8)
+    dst(x, 0) = d0
+    dst(x, 1) = d1
+    dst(x, 2) = d2
+    dst(x, 3) = d3
+    dst(x, 4) = d4
+    dst(x, 5) = d5
+    dst(x, 6) = d6
+    dst(x, 7) = d7
+    dst(x, 8) = d8
+  end subroutine node_from_rows_sp
 
   !> Two lattices: pull into node (x, j) of fin, collide, store in fout.
   pure subroutine node_sp(c, bgk, forced, fin, fout, nxp, nyl, x, j)

@@ -16,11 +16,13 @@
 !> links and nodes of the disks a slab holds: nothing here loops over rows without links or over
 !> particles the slab does not hold.
 module dkt_particle_links
+  use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
   use dkt_lattice, only: ex, ey, w, opp, equilibrium
   use dkt_domain, only: domain_t, domain_edge_rows
   use dkt_store, only: lattice_t, lattice_get, lattice_set, lattice_get_node, lattice_set_node
+  use dkt_half, only: half_encode, half_decode
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_particles, only: particles_t, inner_link_t
@@ -230,6 +232,7 @@ contains
     integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
     real(wp) :: no_d(1)
     real(sp) :: no_s(1)
+    integer(int16) :: no_h(1)
     integer :: l, m1, n
     if (j2 < j1) return
     do l = 1, ps%nrows
@@ -249,14 +252,18 @@ contains
     ! no other link reads, so each link can write its result as soon as it has it. The loop
     ! reads and writes the stored array of the lattice's storage; the other one is a stand-in
     ! that it never touches.
-    if (.not. f%single) then
+    if (f%half) then
+      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), no_d, &
+                        no_s, f%h, size(f%h, 1), size(f%h, 2), .false., .false., .true., ps%lp, &
+                        ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+    else if (.not. f%single) then
       call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), f%d, &
-                        no_s, size(f%d, 1), size(f%d, 2), .false., .false., ps%lp, ps%lx, &
-                        ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+                        no_s, no_h, size(f%d, 1), size(f%d, 2), .false., .false., .false., &
+                        ps%lp, ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
     else
       call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), no_d, &
-                        f%s, size(f%s, 1), size(f%s, 2), .true., f%shifted, ps%lp, ps%lx, &
-                        ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+                        f%s, no_h, size(f%s, 1), size(f%s, 2), .true., f%shifted, .false., &
+                        ps%lp, ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
     end if
   end subroutine particles_bounce
 
@@ -277,15 +284,16 @@ contains
   end subroutine link_offsets
 
   !> particles_bounce on the links order(:), on the populations as the lattice stores them
-  !! (dkt_store), f(0:nxp-1, 0:ny-1, 0:8) taken as one array: fd in 8 bytes, or fs in 4
-  !! (single) holding f_i - w_i (shifted) or f_i. Each value is read and written as
+  !! (dkt_store), f(0:nxp-1, 0:ny-1, 0:8) taken as one array: fd in 8 bytes, fs in 4
+  !! (single) holding f_i - w_i (shifted) or f_i, or fh in 16-bit codes of f_i - w_i (half).
+  !! Each value is read and written as
   !! lattice_get and lattice_set do, unshifted in 8 bytes. The density at x_f is summed once
   !! for the links of a node that follow one another, the disk copied once for the links of a
   !! disk that do. The link arrays of particles_t and its row sums come one by one, as arrays
   !! of their own, so that the loop holds their addresses instead of reading them out of the
   !! derived type at each link.
-  subroutine bounce_links(p, scheme, galilean, y0, order, fd, fs, nxp, ny, single, shifted, lp, &
-                          lx, ly, ld, lq, lff, lrow, rows)
+  subroutine bounce_links(p, scheme, galilean, y0, order, fd, fs, fh, nxp, ny, single, shifted, &
+                          half, lp, lx, ly, ld, lq, lff, lrow, rows)
     type(particle_state_t), intent(in) :: p !! the disks
     integer, intent(in) :: scheme !! BB_YU, BB_BFL or BB_HALFWAY
     logical, intent(in) :: galilean !! E7 with e - u_w
@@ -293,8 +301,9 @@ contains
     integer, intent(in) :: order(:) !! the links, in the order they are bounced
     real(wp), intent(inout) :: fd(0:*)
     real(sp), intent(inout) :: fs(0:*)
+    integer(int16), intent(inout) :: fh(0:*)
     integer, intent(in) :: nxp, ny
-    logical, intent(in) :: single, shifted
+    logical, intent(in) :: single, shifted, half
     integer, intent(in) :: lp(*), lx(*), ly(*), ld(*), lrow(*) !! particles_t's lp, ...
     real(wp), intent(in) :: lq(*)
     logical, intent(in) :: lff(*)
@@ -316,7 +325,18 @@ contains
       o = lx(l) + nxp*ly(l)
       ! f_i and f_ibar at x_f, f_i at x_f - e_i (read by Yu and BFL only when it is a fluid
       ! node, x_f's own otherwise: then it is not used), the density at x_f
-      if (.not. single) then
+      if (half) then
+        fi = real(half_decode(fh(o + own(d))), wp) + w(d)
+        fib = real(half_decode(fh(o + back(d))), wp) + w(opp(d))
+        fff = fi
+        if (lff(l)) fff = real(half_decode(fh(o + behind(d))), wp) + w(d)
+        if (o /= olast) then
+          rho = 0.0_wp
+          do i = 0, 8
+            rho = rho + (real(half_decode(fh(o + i*np8)), wp) + w(i))
+          end do
+        end if
+      else if (.not. single) then
         fi = fd(o + own(d))
         fib = fd(o + back(d))
         fff = fi
@@ -379,7 +399,9 @@ contains
         fb = fi + wall
       end select
       ! f_ibar(x_f, t+1) into the solid slot x_f + e_i
-      if (.not. single) then
+      if (half) then
+        fh(o + ahead(d)) = half_encode(real(fb - w(opp(d)), sp))
+      else if (.not. single) then
         fd(o + ahead(d)) = fb
       else if (shifted) then
         fs(o + ahead(d)) = real(fb - w(opp(d)), sp)

@@ -10,7 +10,7 @@ module dkt_report
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
   use dkt_domain, only: domain_t, domain_resize
-  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST
+  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST, PRECISION_HALF
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
@@ -125,7 +125,9 @@ contains
              trim(merge('one lattice, streamed in place', 'two lattices                  ', &
                         cfg%lbm%streaming_kind == STREAMING_IN_PLACE))// &
              '; populations stored in '//itoa(lattice_bytes(cfg%lbm%precision_kind))// &
-             ' bytes, lbm.precision = '// &
+             trim(merge(' bytes (16 bits: 1 sign, 4 exponent, 11 mantissa)', &
+                        ' bytes                                           ', &
+                        cfg%lbm%precision_kind == PRECISION_HALF))//', lbm.precision = '// &
              trim(cfg%lbm%precision)//'), particle arrays '// &
              fixed2(mem(2))//' MiB, output buffers '//fixed2(mem(3))//' MiB while writing'// &
              grown//'; '//trim(particles)//'; '//trim(window)

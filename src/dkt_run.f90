@@ -82,13 +82,13 @@ contains
     character(len=:), allocatable :: placed
 
     associate (sim => run%sim, out => run%out, chk => run%chk, lp => run%sim%lp)
-      ! 4-byte arithmetic on deviations (lbm.precision = 'single_arith'): the quiescent fluid
-      ! ahead of a disturbance holds deviations that decay through the subnormal range of a
-      ! 4-byte real (below 1.2e-38), where every operation takes a microcode assist and a sweep
-      ! runs twice as long. They are flushed to zero instead, on every rank alike, for the
-      ! whole loop (set here, in the procedure that holds the loop: Fortran restores the mode
-      ! a procedure changed when it returns; docs/model.md §1).
-      if (sim%f%arith4 .and. ieee_support_underflow_control(1.0_sp)) &
+      ! 4-byte arithmetic on deviations (lbm.precision = 'single_arith' and 'half'): the
+      ! quiescent fluid ahead of a disturbance holds deviations that decay through the subnormal
+      ! range of a 4-byte real (below 1.2e-38), where every operation takes a microcode assist
+      ! and a sweep runs twice as long. They are flushed to zero instead, on every rank alike,
+      ! for the whole loop (set here, in the procedure that holds the loop: Fortran restores the
+      ! mode a procedure changed when it returns; docs/model.md §1).
+      if ((sim%f%arith4 .or. sim%f%half) .and. ieee_support_underflow_control(1.0_sp)) &
         call ieee_set_underflow_mode(gradual=.false.)
       call output_initial(out, sim)
       call checkpoint_start(chk)

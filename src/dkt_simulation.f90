@@ -62,7 +62,7 @@ contains
     character(len=:), allocatable :: err
     logical :: periodic_x, periodic_y
     integer :: min_rows
-    logical :: single, shifted, arith4
+    logical :: single, shifted, arith4, half
     type(domain_t) :: largest
     type(lattice_params_t) :: lp_largest
 
@@ -99,13 +99,13 @@ contains
                        cfg%inlet%ramp_time/lp%dt)
     call collision_init(sim%coll, lp%s, cfg%lbm%collision_kind == COLLISION_BGK, lp%force_lb)
     if (with_lattices) then
-      call lattice_precision(cfg%lbm%precision_kind, single, shifted, arith4)
+      call lattice_precision(cfg%lbm%precision_kind, single, shifted, arith4, half)
       sim%in_place = cfg%lbm%streaming_kind == STREAMING_IN_PLACE
-      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
       if (sim%in_place) then
         sim%f_next = sim%f
       else
-        call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
+        call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
       end if
       call sweep_init(sim%ws, sim%dom%nxp)
       call initialise(sim)
@@ -707,13 +707,14 @@ contains
     type(lattice_t) :: grown
     real(wp) :: feq(0:8)
     integer :: i, j
-    logical :: single, shifted, arith4
+    logical :: single, shifted, arith4, half
     old = sim%dom
     single = sim%f_next%single
     shifted = sim%f_next%shifted
     arith4 = sim%f_next%arith4
+    half = sim%f_next%half
     call domain_resize(sim%dom, ny)
-    call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
+    call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
     call domain_move_rows(old, sim%dom, sim%f_next, grown)
     feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
     do j = max(1, old%ny - sim%dom%y0 + 1), sim%dom%nyl
@@ -726,7 +727,7 @@ contains
       sim%f = grown
     else
       call lattice_free(sim%f_next)
-      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4)
+      call lattice_allocate(sim%f, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
     end if
     sim%f_next = grown
     call sweep_init(sim%ws, sim%dom%nxp)
@@ -752,7 +753,7 @@ contains
     call log_close()
     call lattice_free(sim%f)
     if (.not. sim%in_place) call lattice_free(sim%f_next)
-    nullify (sim%f_next%d, sim%f_next%s)
+    nullify (sim%f_next%d, sim%f_next%s, sim%f_next%h)
     call domain_free(sim%dom)
   end subroutine simulation_finish
 

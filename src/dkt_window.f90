@@ -11,6 +11,7 @@
 !> window run has the same bits on any number of ranks.
 module dkt_window
   use mpi_f08, only: MPI_Sendrecv, MPI_STATUS_IGNORE
+  use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, mpi_wp
   use dkt_lattice, only: equilibrium
   use dkt_domain, only: domain_t
@@ -98,8 +99,9 @@ contains
   !> Every row moves up by one: the top row of each slab goes to the slab above (the top row of
   !! the channel is dropped), and the bottom slab gets a fresh row of fluid at rest. The message
   !! holds columns 0..nx+1 of the nine populations, a size both sides compute from nx: the
-  !! padding beyond nx+1 is never sent. The stored values move as they are (4-byte values
-  !! travel exactly in the 8-byte buffer); the entering row is set from its 8-byte equilibrium.
+  !! padding beyond nx+1 is never sent. The stored values move as they are (4-byte values and
+  !! 16-bit codes travel exactly in the 8-byte buffer); the entering row is set from its 8-byte
+  !! equilibrium.
   subroutine shift_rows(dom, f)
     type(domain_t), intent(in) :: dom
     type(lattice_t), intent(inout) :: f
@@ -109,7 +111,9 @@ contains
     nyl = dom%nyl
     last = dom%nx + 1
     allocate (sbuf(0:last, 0:8), rbuf(0:last, 0:8))
-    if (f%single) then
+    if (f%half) then
+      sbuf = real(f%h(0:last, nyl, :), wp)
+    else if (f%single) then
       sbuf = real(f%s(0:last, nyl, :), wp)
     else
       sbuf = f%d(0:last, nyl, :)
@@ -117,7 +121,9 @@ contains
     call MPI_Sendrecv(sbuf, size(sbuf), mpi_wp, dom%above, TAG_SHIFT, rbuf, size(rbuf), mpi_wp, &
                       dom%below, TAG_SHIFT, dom%comm, MPI_STATUS_IGNORE)
     do j = nyl, 2, -1
-      if (f%single) then
+      if (f%half) then
+        f%h(0:last, j, :) = f%h(0:last, j - 1, :)
+      else if (f%single) then
         f%s(0:last, j, :) = f%s(0:last, j - 1, :)
       else
         f%d(0:last, j, :) = f%d(0:last, j - 1, :)
@@ -128,6 +134,8 @@ contains
       do i = 0, last
         call lattice_set_node(f, i, 1, feq)
       end do
+    else if (f%half) then
+      f%h(0:last, 1, :) = int(rbuf, int16)
     else if (f%single) then
       f%s(0:last, 1, :) = real(rbuf, sp)
     else

@@ -2,6 +2,8 @@
 # through the whole program (regression), and rank-count independence (mpi).
 dkt_add_fortran_test(NAME test_mrt SOURCES dkt_check.f90 test_mrt.f90 LABELS unit NO_MPIEXEC)
 dkt_add_fortran_test(NAME test_mrt_sp SOURCES dkt_check.f90 test_mrt_sp.f90 LABELS unit NO_MPIEXEC)
+# lbm.precision = 'half': the 16-bit format (all 65536 codes, rounding, clamp) and its sweep
+dkt_add_fortran_test(NAME test_half SOURCES dkt_check.f90 test_half.f90 LABELS unit NO_MPIEXEC)
 dkt_add_pytest(NAME analytic_flows FILE tests/test_flows.py LABELS regression PROCESSORS 2
   TIMEOUT 600)
 # lbm.precision: 4-byte storage against the analytic flows, the naive form, the memory count

@@ -58,7 +58,7 @@ contains
     integer :: x, j, xa, ja
     character(len=:), allocatable :: failure, name
     name = trim(FORMS(form))//': '
-    call lattice_allocate(f, dom%nxp, dom%nyl, form > 1, form == 2, .false.)
+    call lattice_allocate(f, dom%nxp, dom%nyl, form > 1, form == 2, .false., half=.false.)
     call fill(f)
     ! the node-by-node reference, and the first node above ref*(1 - 1e-3)
     ref = 0.0_wp

@@ -183,9 +183,9 @@ contains
     ref = 0.0_wp
     call stream_collide(coll, fin, ref, nxp, nx, ny, 1, ny)
     call sweep_init(ws, nxp)
-    call lattice_allocate(a, nxp, ny, .false., .false., .false.)
-    call lattice_allocate(b, nxp, ny, .false., .false., .false.)
-    call lattice_allocate(c, nxp, ny, .false., .false., .false.)
+    call lattice_allocate(a, nxp, ny, .false., .false., .false., half=.false.)
+    call lattice_allocate(b, nxp, ny, .false., .false., .false., half=.false.)
+    call lattice_allocate(c, nxp, ny, .false., .false., .false., half=.false.)
     what = trim(merge('BGK', 'MRT', bgk))
     if (forced) what = what//' with body force'
     ! one lattice into another
@@ -227,8 +227,8 @@ contains
     shift = 0.0_wp
     if (shifted) shift = w
     call sweep_init(ws, nxp)
-    call lattice_allocate(a, nxp, ny, .true., shifted, .false.)
-    call lattice_allocate(b, nxp, ny, .true., shifted, .false.)
+    call lattice_allocate(a, nxp, ny, .true., shifted, .false., half=.false.)
+    call lattice_allocate(b, nxp, ny, .true., shifted, .false., half=.false.)
     ! the stored values, and the 8-byte lattice they stand for
     do i = 0, 8
       a%s(:, :, i) = real(fin(:, :, i) - shift(i), sp)

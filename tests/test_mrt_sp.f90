@@ -100,8 +100,8 @@ contains
     call some_collision(coll, bgk, forced, amp)
     call random_rows(fin, ny, amp)
     call sweep_init(ws, nxp)
-    call lattice_allocate(a, nxp, ny, .true., .true., arith4=.true.)
-    call lattice_allocate(b, nxp, ny, .true., .true., arith4=.true.)
+    call lattice_allocate(a, nxp, ny, .true., .true., arith4=.true., half=.false.)
+    call lattice_allocate(b, nxp, ny, .true., .true., arith4=.true., half=.false.)
     call stored(fin, a, ny)
     ref = 0.0_wp
     call stream_collide(coll, fin, ref, nxp, nx, ny, 1, ny)
@@ -155,9 +155,9 @@ contains
     call some_collision(coll, bgk, forced, 0.08_wp)
     call random_rows(fin, ny, 0.08_wp)
     call sweep_init(ws, nxp)
-    call lattice_allocate(a, nxp, ny, .true., .true., arith4=.true.)
-    call lattice_allocate(b, nxp, ny, .true., .true., arith4=.true.)
-    call lattice_allocate(c, nxp, ny, .true., .true., arith4=.true.)
+    call lattice_allocate(a, nxp, ny, .true., .true., arith4=.true., half=.false.)
+    call lattice_allocate(b, nxp, ny, .true., .true., arith4=.true., half=.false.)
+    call lattice_allocate(c, nxp, ny, .true., .true., arith4=.true., half=.false.)
     call stored(fin, a, ny)
     c%s = a%s
     call sweep_rows(coll, ws, a, b, nx, ny, 1, ny)

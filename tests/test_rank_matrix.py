@@ -7,7 +7,8 @@ Each case is a short run of a small scene, chosen so that together the cases cov
 - particles whose centres cross a slab face while the window shifts, and in a box;
 - open ends (velocity and outflow, E5), closed ends (walls) and periodic ends;
 - populations stored in 8 bytes (the default) and in 4 (lbm.precision = 'single'), and
-  stored and collided in 4 (lbm.precision = 'single_arith', with 4-byte row buffers);
+  stored and collided in 4 (lbm.precision = 'single_arith', with 4-byte row buffers), and
+  stored in 16-bit codes and collided in 4 (lbm.precision = 'half', HALF_CASES);
 - in-place streaming (the default) against two lattices (lbm.streaming = 'two_lattice');
 - interior nodes solid (the default) and fluid (coupling.interior = 'fluid').
 
@@ -169,6 +170,21 @@ for _case in ("window_uneven_rows_3", "closed_box_crossing"):
         "single_twin": f"{_case}_single",
     }
 
+# lbm.precision = 'half' (16-bit codes, halo rows as 2-byte integers, collided in 4 bytes from
+# decoded rows, src/dkt_mrt_half.f90): the same two cases. Kept apart from CASES, which
+# tools/compare_builds.py runs on a reference build that may predate 'half'; the tests here
+# run both. "single_twin" asserts the 16-bit run differs from 'single_arith', so the codes
+# really round.
+HALF_CASES = {
+    f"{_case}_half": {
+        **CASES[_case],
+        "sets": CASES[_case]["sets"] + ["lbm.precision=half"],
+        "double_twin": _case,
+        "single_twin": f"{_case}_single_arith",
+    }
+    for _case in ("window_uneven_rows_3", "closed_box_crossing")
+}
+
 # coupling.interior = 'fluid': the interior nodes are fluid, bounced from both sides of the
 # surface, and an interior link whose outer node lies in a halo row takes that node's density
 # from its owner. The closed box (a disk across the 3-rank face, uneven rows) and a window case
@@ -178,6 +194,9 @@ for _case in ("closed_box_crossing", "window_uneven_rows_3"):
         **CASES[_case],
         "sets": CASES[_case]["sets"] + ["coupling.interior=fluid"],
     }
+
+
+ALL_CASES = {**CASES, **HALF_CASES}
 
 
 def rows_for(ny: int, n: int) -> list[int]:
@@ -221,7 +240,7 @@ class Runs:
     def get(self, case: str, ranks: int, streaming: str = "in_place") -> tuple:
         key = (case, ranks, streaming)
         if key not in self.done:
-            spec = CASES[case]
+            spec = ALL_CASES[case]
             d = self.root / f"{case}_r{ranks}_{streaming}"
             sets = spec["sets"] + ["output.series_interval=1e-9", f"lbm.streaming={streaming}"]
             proc = run(spec["nml"], ranks, sets, d, check=False)
@@ -239,9 +258,9 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Runs:
     return Runs(tmp_path_factory.mktemp("matrix"))
 
 
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", sorted(ALL_CASES))
 def test_case_hits_the_split_it_claims(runs: Runs, case: str) -> None:
-    spec = CASES[case]
+    spec = ALL_CASES[case]
     data, _, runattrs = runs.get(case, 1)
     nx, ny = int(runattrs["nx"]), int(runattrs["ny"])
     uneven = [n for n in RANKS[1:] if ny % n]
@@ -300,7 +319,7 @@ def assert_same_bits(ref: tuple, other: tuple, what: str) -> None:
 
 
 @pytest.mark.parametrize("ranks", (1, 4))
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", sorted(ALL_CASES))
 def test_two_lattices_give_the_in_place_bits(runs: Runs, case: str, ranks: int) -> None:
     fields = [k for k in runs.get(case, ranks)[0] if k.startswith("fields/")]
     assert len(fields) >= 2 * 5, f"{case}: too few field snapshots to compare the run's course"
@@ -312,7 +331,7 @@ def test_two_lattices_give_the_in_place_bits(runs: Runs, case: str, ranks: int) 
 
 
 @pytest.mark.parametrize("ranks", RANKS[1:])
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", sorted(ALL_CASES))
 def test_every_dataset_is_bitwise_the_1_rank_run(runs: Runs, case: str, ranks: int) -> None:
     ref = runs.get(case, 1)
     fields = [k for k in ref[0] if k.startswith("fields/")]

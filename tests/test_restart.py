@@ -123,6 +123,57 @@ def test_a_single_precision_run_restarts_bit_for_bit(tmp_path: Path, precision: 
     assert_same_output(reference, out)
 
 
+def decode_half(codes: np.ndarray) -> np.ndarray:
+    """The deviations f_i - w_i that 16-bit codes (as integers) stand for."""
+    u = codes.astype(np.int64) & 0xFFFF
+    e, m = (u >> 11) & 15, u & 2047
+    value = np.where(e > 0, (2048 + m) * 2.0 ** (e - 26.0), m * 2.0**-25)
+    return np.where(u >> 15 == 1, -value, value)
+
+
+def test_a_16_bit_run_restarts_bit_for_bit_and_refuses_other_precisions(tmp_path: Path) -> None:
+    """lbm.precision = 'half': the checkpoint holds the 16-bit codes exactly (every value of /f
+    is an integer in -32768..32767, /precision is 4, the rest state is code 0, so the rest
+    population of a fluid at rest is near 0, not near 4/9) and a run resumed from it on 3 ranks
+    ends bitwise equal to the run that never stopped. Fails if the checkpoint decodes the codes,
+    rounds them or drops the sign. A resume with 'single_arith' (which collides alike but
+    stores 4 bytes) is refused, and so is a 'single_arith' checkpoint resumed in 'half'."""
+    steps = STEPS // 2
+    sets = [*SETS, f"run.steps={steps}", "lbm.precision=half"]
+    reference = tmp_path / "reference"
+    run("case0.nml", 2, sets, reference, timeout=600)
+    out = tmp_path / "run"
+    part = steps // 2
+    run("case0.nml", 2, [*sets, f"run.steps={part}", f"run.checkpoint_every={part}"], out)
+    checkpoint = out / f"case0_chk_{part:09d}.h5"
+    with h5py.File(checkpoint, "r") as h5:
+        assert h5["precision"][()].tolist() == [4]
+        f = h5["f"][()]
+    assert np.array_equal(f, np.round(f)) and f.min() >= -32768 and f.max() <= 32767
+    assert (f < 0).any(), "no negative code: the sign bit is lost"
+    # codes of f_i - w_i (1 sign, 4 exponent, 11 mantissa bits, docs/model.md §1): decoded, the
+    # rest population is near 0, not near 4/9
+    assert np.abs(decode_half(f[0])).max() < 0.1
+    refused = run(
+        "case0.nml", 3, [*sets, "lbm.precision=single_arith"], out,
+        extra=["--restart", str(checkpoint)], check=False,
+    )  # fmt: skip
+    assert refused.returncode != 0
+    assert "--set lbm.precision=half" in refused.stderr, refused.stderr
+    run("case0.nml", 3, sets, out, extra=["--restart", str(checkpoint)])
+    assert_same_output(reference, out)
+    # the other way: a 4-byte checkpoint into a 16-bit lattice
+    other = tmp_path / "single_arith"
+    four = [*SETS, f"run.steps={part}", "lbm.precision=single_arith"]
+    run("case0.nml", 1, [*four, f"run.checkpoint_every={part}"], other)
+    refused = run(
+        "case0.nml", 1, [*four, "lbm.precision=half"], other,
+        extra=["--restart", str(other / f"case0_chk_{part:09d}.h5")], check=False,
+    )  # fmt: skip
+    assert refused.returncode != 0
+    assert "--set lbm.precision=single_arith" in refused.stderr, refused.stderr
+
+
 def test_sigterm_checkpoints_exits_zero_and_the_resumed_run_matches(tmp_path: Path) -> None:
     """SIGTERM to the ranks (what a batch system sends before the time limit) mid-run: the run
     writes a checkpoint within two steps (at a step boundary), says how to resume, exits 0 and

@@ -24,7 +24,7 @@ program test_window_follow
   call MPI_Init()
   call domain_init(dom, MPI_COMM_WORLD, NX, NY, .false., .false., 4, err)
   if (len(err) > 0) error stop err
-  call lattice_allocate(f, dom%nxp, dom%nyl, .false., .false., .false.)
+  call lattice_allocate(f, dom%nxp, dom%nyl, .false., .false., .false., half=.false.)
 
   call follow(5.0_wp, 4, 9.0_wp, 'a particle 5 rows below the line is followed by 4 rows')
   call follow(ieee_value(1.0_wp, ieee_quiet_nan), 0, -1.0_wp, &

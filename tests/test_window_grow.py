@@ -121,13 +121,13 @@ def test_the_window_grows_where_a_fixed_one_ends_the_run_and_the_run_goes_on(run
         assert h5["particles/t"].shape[0] == GROWS_AT + 1
 
 
-@pytest.mark.parametrize("precision", ["single", "single_arith"])
+@pytest.mark.parametrize("precision", ["single", "single_arith", "half"])
 def test_a_growing_window_of_4_byte_populations_is_bitwise_the_1_rank_run(
     runs: Runs, precision: str
 ) -> None:
-    """The rows a growth moves between ranks travel as stored 4-byte values, and a lattice
-    that grows keeps its precision ('single_arith' collides in 4 bytes after the growth as
-    before it): 3 uneven ranks give the bits of 1."""
+    """The rows a growth moves between ranks travel as stored 4-byte values (or 16-bit codes,
+    'half'), and a lattice that grows keeps its precision ('single_arith' and 'half' collide in
+    4 bytes after the growth as before it): 3 uneven ranks give the bits of 1."""
     ref = datasets(runs.get(1, precision=precision) / "case2.h5")
     assert_same_bits(ref, datasets(runs.get(3, precision=precision) / "case2.h5"),
                      f"{precision}, 3 ranks against 1")

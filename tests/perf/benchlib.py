@@ -28,18 +28,18 @@ from dktlbm import launch
 
 ROOT = Path(__file__).resolve().parents[2]
 
-PRECISIONS = ("double", "single", "single_arith")
+PRECISIONS = ("double", "single", "single_arith", "half")
 STREAMINGS = ("two_lattice", "in_place")
 BASELINE = ("double", "two_lattice")
 # the layout of a build without the keys, and the keys' defaults
 DEFAULTS = {"precision": BASELINE[0], "streaming": BASELINE[1]}
 
 # Bytes one lattice node moves per time step through memory: 9 populations read and 9 written,
-# 8 or 4 bytes each. With two lattices the written lattice is not the read one, and a plain
+# 8, 4 or 2 bytes each. With two lattices the written lattice is not the read one, and a plain
 # store first reads the cache line it writes (write-allocate): another 9 populations read.
 # In place, each population is written back where it was read: no extra traffic.
 POPULATIONS = 9
-VALUE_BYTES = {"double": 8, "single": 4, "single_arith": 4}
+VALUE_BYTES = {"double": 8, "single": 4, "single_arith": 4, "half": 2}
 
 
 def node_bytes(precision: str, streaming: str) -> tuple[int, int]:

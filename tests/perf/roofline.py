@@ -10,6 +10,8 @@ measured bandwidth by the bytes one node moves per step:
     double, in place      144                  0                  update (a = a + s)
     single, two lattices   72                  36                 copy
     single, in place       72                  0                  update
+    half, two lattices     36                  18                 copy
+    half, in place         36                  0                  update
 
 Two bounds are printed per rank count. "bus": the copy's bandwidth with its write-allocate
 traffic counted (24 B per element) taken as what the memory delivers, divided by each layout's

@@ -408,7 +408,9 @@ def figure(summary: dict, scenes: list[str], reference_cfg: dict, path: Path) ->
     front = set(pareto(points))
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for i, (e, (x, y)) in enumerate(zip(entries, points, strict=True)):
-        marker = {"single": "s", "single_arith": "^"}.get(e["config"].get("lbm.precision"), "o")
+        marker = {"single": "s", "single_arith": "^", "half": "v"}.get(
+            e["config"].get("lbm.precision"), "o"
+        )
         ax.plot(x, y, marker, ms=7, mfc="none" if i not in front else "C3",
                 mec="C3" if i in front else "C0")  # fmt: skip
         ax.annotate(point_label(e["config"], reference_cfg), (x, y), textcoords="offset points",
@@ -467,7 +469,9 @@ def main() -> int:
     parser.add_argument("--tau", nargs="+", help="lbm.tau values ('scene': the scene's own)")
     parser.add_argument("--bounce-back", nargs="+", choices=["yu", "halfway", "bfl"])
     parser.add_argument("--momentum", nargs="+", choices=["galilean", "paper"])
-    parser.add_argument("--precision", nargs="+", choices=["double", "single", "single_arith"])
+    parser.add_argument(
+        "--precision", nargs="+", choices=["double", "single", "single_arith", "half"]
+    )
     parser.add_argument("--axis", action="append", default=[], metavar="KEY=V1,V2",
                         help="a further input key and its values (repeatable)")  # fmt: skip
     parser.add_argument("--quick", action="store_true",
