@@ -175,15 +175,16 @@ CASES = {
     ),
     "precision-not-in-list": Case(
         "tau = 1.0",
-        "tau = 1.0, precision = 'half'",
+        "tau = 1.0, precision = 'quarter'",
         pieces=[
             "{file}:{line}:",
             "&lbm",
             "precision",
-            "'half'",
+            "'quarter'",
             "'double'",
             "'single'",
             "'single_unshifted'",
+            "'half'",
         ],
     ),
     "precision-not-in-list-by-set": Case(
