@@ -29,6 +29,10 @@ module dkt_report
     integer(i8) :: updates_last = 0 !! simulation_t updates at the last progress line
   end type progress_t
 
+  !> the slowest lattice velocity scale at which 'half' was measured to give the answers of
+  !! 4-byte storage (docs/tradeoff.md): below it a run in 'half' is warned about
+  real(wp), parameter :: HALF_SLOWEST = 1.0e-2_wp
+
 contains
 
   !> The derived lattice parameters, sizes and models of the run, printed by rank 0 before it
@@ -79,6 +83,15 @@ contains
           'particles such runs were measured unstable. Set lbm.s_q = 1.2 (walls then sit '// &
           'slightly off half-way), or raise lbm.tau'
         call warn(trim(line))
+      end if
+      if (cfg%lbm%precision_kind == PRECISION_HALF .and. lp%u_scale_lb < HALF_SLOWEST) then
+        ! docs/tradeoff.md, "Populations in 2 bytes": at lattice speeds near 1e-4 the
+        ! deviations f_i - w_i fall to the 16-bit format's subnormal spacing
+        write (line, '(a,es10.3e2,a)') 'lbm.precision = ''half'' is accurate only where the '// &
+          'flow moves at lattice velocities of 1e-2 or more; this scene''s velocity scale is ', &
+          lp%u_scale_lb
+        call warn(trim(line)//' (from '//lp%velocity_source//'), where 16-bit populations were measured '// &
+                  '14-20 % off. Use lbm.precision = ''single_arith'' (docs/tradeoff.md)')
       end if
       if (lp%mach > cfg%run%mach_limit) then
         write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
