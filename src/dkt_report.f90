@@ -87,11 +87,12 @@ contains
       if (cfg%lbm%precision_kind == PRECISION_HALF .and. lp%u_scale_lb < HALF_SLOWEST) then
         ! docs/tradeoff.md, "Populations in 2 bytes": at lattice speeds near 1e-4 the
         ! deviations f_i - w_i fall to the 16-bit format's subnormal spacing
-        write (line, '(a,es10.3e2,a)') 'lbm.precision = ''half'' is accurate only where the '// &
+        write (line, '(a,es10.3e2)') 'lbm.precision = ''half'' is accurate only where the '// &
           'flow moves at lattice velocities of 1e-2 or more; this scene''s velocity scale is ', &
           lp%u_scale_lb
-        call warn(trim(line)//' (from '//lp%velocity_source//'), where 16-bit populations were measured '// &
-                  '14-20 % off. Use lbm.precision = ''single_arith'' (docs/tradeoff.md)')
+        call warn(trim(line)//' (from '//lp%velocity_source//'), where 16-bit populations '// &
+                  'were measured 14-20 % off. Use lbm.precision = ''single_arith'' '// &
+                  '(docs/tradeoff.md)')
       end if
       if (lp%mach > cfg%run%mach_limit) then
         write (line, '(a,es12.4e3,a,es12.4e3,a)') 'the expected Mach number ', lp%mach, &
