@@ -10,7 +10,7 @@ module dkt_config_checks
   use dkt_registry, only: registry_t, find_key, value_text, origin_of, blame
   use dkt_text, only: quoted, fmt_real, fmt_num, itoa
   use dkt_config_types, only: config_t
-  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob, window_max_above
+  use dkt_config_scene, only: largest_diameter, window_bottom, dx_knob, WINDOW_AUTO_CAP
   use dkt_config_lattice, only: lattice_params_t
   implicit none
   private
@@ -89,12 +89,18 @@ contains
     type(check_t), intent(inout), target :: ck
     character(len=:), allocatable, intent(inout) :: err
     integer :: j
+    real(wp) :: above
     ck%few_cells = 0
     ck%near_wall = 0
     ck%window_length = ck%c%domain%height
-    if (ck%c%window%enabled .and. window_max_above(ck%c) > 0.0_wp) &
-      ck%window_length = max(ck%window_length, (ck%c%window%below + window_max_above(ck%c))* &
+    if (ck%c%window%enabled) then
+      ! the longest the window may grow: its limit, or for the default -1 (window_max_above,
+      ! which needs the scene's velocity scale, not yet checked here) the cap of that limit
+      above = ck%c%window%max_above
+      if (above < 0.0_wp) above = WINDOW_AUTO_CAP*ck%c%window%above
+      ck%window_length = max(ck%window_length, (ck%c%window%below + above)* &
                              largest_diameter(ck%c))
+    end if
     do j = 1, ck%c%particles%count
       call chk_particle(ck, err, j)
       if (len(err) > 0) return

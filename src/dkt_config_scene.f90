@@ -162,7 +162,7 @@ contains
   function window_max_above(c) result(above)
     type(config_t), intent(in) :: c
     real(wp) :: above
-    real(wp) :: u, t_run, nu
+    real(wp) :: u, t_run, nu, reach
     character(len=:), allocatable :: source
     above = c%window%max_above
     if (above >= 0.0_wp) return
@@ -173,8 +173,14 @@ contains
       nu = c%fluid%viscosity/c%fluid%density
       t_run = c%run%steps*(cs2*(c%lbm%tau - 0.5_wp)*c%lbm%dx**2/nu)
     end if
-    above = c%window%above + min(u*t_run/largest_diameter(c), &
-                                 (WINDOW_AUTO_CAP - 1.0_wp)*c%window%above)
+    ! at most the cap, compared without forming U t where it could overflow (a scene's
+    ! velocity scale and length are only range-checked)
+    reach = (WINDOW_AUTO_CAP - 1.0_wp)*c%window%above*largest_diameter(c)
+    if (u <= reach/t_run) then
+      above = c%window%above + u*t_run/largest_diameter(c)
+    else
+      above = WINDOW_AUTO_CAP*c%window%above
+    end if
   end function window_max_above
 
   !> y (cm, absolute) of the lower end of the window at t = 0: window%below D_1 under the
