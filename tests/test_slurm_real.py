@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import time
@@ -284,7 +285,7 @@ def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
     SIGUSR1 as soon as its shell runs, before its dktlbm starts (gated_exe holds that run
     only), and is resubmitted as that index only, with 1 task; both runs end finished,
     `collect` shows both with a pattern, and the interrupted run's file is bitwise that of
-    its run finished in one go by task 0's twin (same settings, same ranks)."""
+    its run finished in one go with the planned run's own settings (same ranks)."""
     name = "dkt-real-array"
     out = tmp_path / "sweep"
     rows = plan(out, "2,2.0001")
@@ -319,8 +320,13 @@ def test_sweep_array_task_interrupted_and_resumed(tmp_path: Path) -> None:
     patterns = collect(out)
     assert all(p not in ("missing", "failed", "stopped") for p in patterns.values()), patterns
 
+    # the twin: the planned run's own --set options (the sweep adds its precision), in one go
+    words = shlex.split(rows[1]["command"])
+    sets = [v for flag, v in zip(words, words[1:], strict=False)
+            if flag == "--set" and not v.startswith("output.dir=")]
+    assert "lbm.precision=single_arith" in sets, sets
     direct = tmp_path / "direct"
-    run("case0.nml", 1, [*LONG_SETS, f"pair.dh={rows[1]['dh']}"], direct, timeout=600)
+    run("case0.nml", 1, sets, direct, timeout=600)
     assert_same_output(direct, interrupted)
 
 
