@@ -8,7 +8,7 @@ module dkt_suspension
   use dkt_kinds, only: wp, pi
   implicit none
   private
-  public :: suspension_stats, suspension_bins, FRONT_FRACTION
+  public :: suspension_stats, suspension_bins, FRONT_FRACTION, heap_sort
 
   !> the upper front: the height below which this fraction of the disks' centres lie
   real(wp), parameter :: FRONT_FRACTION = 0.95_wp
@@ -48,7 +48,7 @@ contains
     finite = ieee_is_finite(y)
     if (count(finite) > 0) then
       sorted = pack(y, finite)
-      call sort(sorted)
+      call heap_sort(sorted)
       stats(3) = sorted(max(1, ceiling(FRONT_FRACTION*size(sorted))))
       small = minval(r)
       large = maxval(r)
@@ -79,7 +79,7 @@ contains
   end subroutine suspension_stats
 
   !> Sort a in ascending order (heapsort: O(n log n), no recursion, no extra memory).
-  pure subroutine sort(a)
+  pure subroutine heap_sort(a)
     real(wp), intent(inout) :: a(:)
     integer :: n, i
     real(wp) :: t
@@ -93,7 +93,7 @@ contains
       a(i) = t
       call sift(a, 1, i - 1)
     end do
-  end subroutine sort
+  end subroutine heap_sort
 
   !> Move a(first) down the heap a(first..last) until neither child is larger.
   pure subroutine sift(a, first, last)

@@ -20,6 +20,7 @@ program test_half
   use dkt_half, only: half_encode, half_decode, HALF_MAX, HALF_MIN_NORMAL
   use dkt_store, only: lattice_t, lattice_allocate
   use dkt_mrt, only: collision_t, collision_init, sweep_t, sweep_init, sweep_rows
+  use dkt_suspension, only: heap_sort
   implicit none
   integer, parameter :: nx = 13, nxp = nx + 3
   integer :: k
@@ -80,7 +81,7 @@ contains
   subroutine test_encode_rounding()
     integer, parameter :: n = 1000000
     real(sp), allocatable :: x(:)
-    real(wp), allocatable :: r(:)
+    real(wp), allocatable :: r(:), xw(:)
     real(wp) :: rel, ab, e
     real(sp) :: lo, hi, mid, back
     integer :: i, bad_order, bad_tie
@@ -91,7 +92,10 @@ contains
     x = real(2.0_wp**(-30.0_wp + 31.0_wp*r), sp)
     call random_number(r)
     x = merge(-x, x, r < 0.5_wp)
-    call sort(x)
+    ! ascending (exact in 8 bytes and back)
+    xw = real(x, wp)
+    call heap_sort(xw)
+    x = real(xw, sp)
     bad_order = 0
     rel = 0.0_wp
     ab = 0.0_wp
@@ -150,45 +154,6 @@ contains
     real(sp) :: v
     v = transfer(int(z'7FC00000', int32), v)
   end function nan
-
-  !> Ascending, in place (a heap sort: no recursion, no extra room).
-  subroutine sort(a)
-    real(sp), intent(inout) :: a(:)
-    integer :: n, i
-    n = size(a)
-    do i = n/2, 1, -1
-      call sift(a, i, n)
-    end do
-    do i = n, 2, -1
-      call swap(a(1), a(i))
-      call sift(a, 1, i - 1)
-    end do
-  end subroutine sort
-
-  subroutine sift(a, first, last)
-    real(sp), intent(inout) :: a(:)
-    integer, intent(in) :: first, last
-    integer :: root, child
-    root = first
-    do
-      child = 2*root
-      if (child > last) exit
-      if (child < last) then
-        if (a(child + 1) > a(child)) child = child + 1
-      end if
-      if (a(root) >= a(child)) exit
-      call swap(a(root), a(child))
-      root = child
-    end do
-  end subroutine sift
-
-  subroutine swap(p, q)
-    real(sp), intent(inout) :: p, q
-    real(sp) :: t
-    t = p
-    p = q
-    q = t
-  end subroutine swap
 
   function label(bgk, forced) result(s)
     logical, intent(in) :: bgk, forced
