@@ -87,15 +87,15 @@ contains
     integer :: i, bad_order, bad_tie
     integer(int16) :: c, prev
     ! magnitudes 2^-30 .. 2, log-uniform, both signs; sorted
-    allocate (r(n))
+    allocate (r(n), x(n))
     call random_number(r)
-    x = real(2.0_wp**(-30.0_wp + 31.0_wp*r), sp)
+    x(:) = real(2.0_wp**(-30.0_wp + 31.0_wp*r), sp)
     call random_number(r)
-    x = merge(-x, x, r < 0.5_wp)
+    x(:) = merge(-x, x, r < 0.5_wp)
     ! ascending (exact in 8 bytes and back)
     xw = real(x, wp)
     call heap_sort(xw)
-    x = real(xw, sp)
+    x(:) = real(xw, sp)
     bad_order = 0
     rel = 0.0_wp
     ab = 0.0_wp
