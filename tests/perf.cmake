@@ -83,3 +83,20 @@ if(Python3_FOUND)
     RUN_SERIAL TRUE
     ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
 endif()
+
+# dktlbm's flow step beside lbmpy's generated kernel on the same lattice and core
+# (tests/perf/peers.py, docs/performance.md "Side by side with lbmpy"); skipped where lbmpy is not
+# installed (pip install lbmpy==1.4.1).
+if(Python3_FOUND)
+  add_test(NAME perf_peers
+    COMMAND "${Python3_EXECUTABLE}" "${CMAKE_CURRENT_SOURCE_DIR}/perf/peers.py"
+      --exe $<TARGET_FILE:dktlbm>
+      --mpiexec "${MPIEXEC_EXECUTABLE}"
+      --repeats 3)
+  set_tests_properties(perf_peers PROPERTIES
+    LABELS perf
+    TIMEOUT 1800
+    RUN_SERIAL TRUE
+    SKIP_RETURN_CODE 77
+    ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1;PYTHONPATH=${PROJECT_SOURCE_DIR}/postproc")
+endif()
