@@ -134,7 +134,11 @@ def signalled_run(
     elif target == "launcher":
         os.kill(proc.pid, signum)
     else:
-        for pid in session_pids(proc.pid, "dktlbm"):
+        # a run without mpirun is one process, the one started: not a copy it forks on its way
+        # to exec Open MPI's daemon in MPI_Init (named dktlbm until the exec), which a signal
+        # would kill ("Unable to start a daemon on the local node")
+        pids = [proc.pid] if ranks is None else session_pids(proc.pid, "dktlbm")
+        for pid in pids:
             os.kill(pid, signum)
     stdout, stderr = finish(proc)
     return proc.returncode, stdout, stderr
