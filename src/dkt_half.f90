@@ -126,7 +126,7 @@ contains
   end subroutine half_pack_row
 
   !> v(lo:hi) = the deviations of codes h(lo:hi, j, i).
-  subroutine half_unpack(h, nxp, nyl, j, i, lo, hi, v)
+  pure subroutine half_unpack(h, nxp, nyl, j, i, lo, hi, v)
     integer, intent(in) :: nxp, nyl, j, i, lo, hi
     integer(int16), intent(in) :: h(0:nxp - 1, 0:nyl + 1, 0:8)
     real(sp), intent(inout) :: v(0:nxp - 1)

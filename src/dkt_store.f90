@@ -20,7 +20,7 @@ module dkt_store
   use dkt_kinds, only: wp, sp
   use dkt_choices, only: PRECISION_NAMES, PRECISION_DOUBLE, PRECISION_SINGLE, &
                          PRECISION_SINGLE_UNSHIFTED, PRECISION_SINGLE_ARITH, PRECISION_HALF
-  use dkt_half, only: half_encode, half_decode
+  use dkt_half, only: half_encode, half_decode, half_unpack
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_lattice, only: w
@@ -216,22 +216,25 @@ contains
     type(lattice_t), intent(in) :: lat
     integer, intent(in) :: j, nx
     real(wp), intent(out), contiguous :: fr(:, 0:)
+    real(sp), allocatable :: decoded(:)
     integer :: i
     do i = 0, 8
       if (lat%half) then
-        fr(1:nx, i) = real(half_decode(lat%h(1:nx, j, i)), wp) + w(i)
+        if (.not. allocated(decoded)) allocate (decoded(0:size(lat%h, 1) - 1))
+        call half_unpack(lat%h, size(lat%h, 1), size(lat%h, 2) - 2, j, i, 1, nx, decoded)
+        call widen_row(decoded(1:nx), .true., w(i), fr(1:nx, i), nx)
       else if (.not. lat%single) then
-        fr(1:nx, i) = lat%d(1:nx, j, i)
+        call copy_row(lat%d(1:nx, j, i), fr(1:nx, i), nx)
       else
         call widen_row(lat%s(1:nx, j, i), lat%shifted, w(i), fr(1:nx, i), nx)
       end if
     end do
   end subroutine lattice_get_row
 
-  !> A 4-byte row in 8 bytes, plus w_i where the lattice stores f_i - w_i. The rows are
-  !! explicit-shape here: through the pointer component the loop read one value at a time with
-  !! a stride, and the guards, which read every row each run.guard_every steps, took longer than
-  !! the flow.
+  !> A 4-byte row in 8 bytes, plus w_i where the lattice stores f_i - w_i. The rows here and in
+  !! copy_row are explicit-shape: through the pointer components the loops read one value at a
+  !! time with a stride, and the guards, which read every row each run.guard_every steps, took
+  !! longer than the flow.
   pure subroutine widen_row(d, shifted, wi, fr, n)
     integer, intent(in) :: n
     real(sp), intent(in) :: d(n)
@@ -244,6 +247,14 @@ contains
       fr = real(d, wp)
     end if
   end subroutine widen_row
+
+  !> An 8-byte row, as it is stored (see widen_row).
+  pure subroutine copy_row(d, fr, n)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: d(n)
+    real(wp), intent(out) :: fr(n)
+    fr = d
+  end subroutine copy_row
 
   !> Store the nine populations at node (x, j).
   subroutine lattice_set_node(lat, x, j, fn)
