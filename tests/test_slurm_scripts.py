@@ -57,6 +57,8 @@ restart = args[args.index("--restart") + 1] if "--restart" in args else None
 name = Path(args[0]).stem
 caught = []
 record = {{"argv": args, "mode": mode, "caught": caught, "wrote": None}}
+if (logs / "calls").exists():  # commands the script ran before this (signalling_stand_ins)
+    record["calls_before"] = int((logs / "calls").read_text())
 
 
 def checkpoint():
@@ -419,6 +421,65 @@ def test_sigusr1_is_forwarded_and_the_run_resubmitted(case: Case, mode: str) -> 
     assert len(runs) == 1 and runs[0]["caught"] == [int(signal.SIGUSR1)]
     assert "SIGUSR1" in out
     assert len(case.log("sbatch")) == 1
+
+
+SIGNALLING_COMMANDS = ("rm", "mkdir", "date", "sed", "tr", "cat", "ls", "basename", "dirname",
+                       "readlink", "realpath", "mv", "cp", "grep", "head", "tail", "touch",
+                       "python3")
+
+
+def signalling_stand_ins(bin_dir: Path, logs: Path) -> None:
+    """Stand-ins for the ordinary commands the scripts run: each counts its call in
+    logs/calls and, on the call numbered SIGNAL_AT, sends SIGUSR1 to the batch shell
+    (BATCH_PID) while it is still running (as Slurm's signal may come at any moment), then
+    runs the real command."""
+    for name in SIGNALLING_COMMANDS:
+        real = shutil.which(name)
+        assert real, name
+        path = bin_dir / name
+        path.write_text(
+            "#!/bin/sh\n"
+            f"c=0; [ -e {logs}/calls ] && read -r c < {logs}/calls\n"
+            f"c=$((c + 1)); echo $c > {logs}/calls\n"
+            'if [ "$c" = "${SIGNAL_AT:-0}" ] && [ -n "${BATCH_PID:-}" ]; then\n'
+            '  kill -USR1 "$BATCH_PID"\n'
+            "fi\n"
+            f'exec "{real}" "$@"\n'
+        )
+        path.chmod(0o755)
+
+
+@pytest.mark.parametrize("script", ["run_one", "sweep_array"])
+def test_sigusr1_at_any_moment_before_the_run_is_kept(tmp_path: Path, script: str) -> None:
+    """A SIGUSR1 that reaches the batch shell while it runs any one of its commands before
+    the run starts (each call in turn: a first job counts them, then one job per call) is
+    neither lost nor fatal: the run catches it once, checkpoints, and the job resubmits itself
+    and exits 0. (A signal that came after the script read its first trap's note but before it
+    set the forwarding trap was lost, and the run went on to its end: seen on real Slurm.)"""
+    def make(n: int) -> Case:
+        place = tmp_path / f"n{n}"
+        place.mkdir()
+        case = make_run_one(place) if script == "run_one" else make_sweep(place)
+        signalling_stand_ins(place / "bin", case.logs)
+        return case
+
+    counted = make(0)
+    proc = counted.run("finish")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    before = counted.log("dktlbm")[0]["calls_before"]
+    assert before >= 3, before  # the stand-ins do see the script's commands
+    for n in range(1, before + 1):
+        case = make(n)
+        # exec keeps the shell's pid, which the stand-ins signal
+        proc = subprocess.run(["bash", "-c", 'BATCH_PID=$$ exec bash "$0"', str(case.script)],
+                              cwd=case.cwd, capture_output=True, text=True, timeout=90,
+                              env={**case.env, "FAKE_MODE": "wait", "SIGNAL_AT": str(n)})
+        out = proc.stdout + proc.stderr
+        assert proc.returncode == 0, f"signal during command {n} of {before}:\n{out}"
+        runs = case.log("dktlbm")
+        assert len(runs) == 1 and runs[0]["caught"] == [int(signal.SIGUSR1)], (n, out)
+        assert runs[0]["calls_before"] >= n, (n, out)  # the signal came before the run
+        assert "SIGUSR1" in out and len(case.log("sbatch")) == 1, (n, out)
 
 
 def test_no_new_checkpoint_is_not_resubmitted(case: Case) -> None:

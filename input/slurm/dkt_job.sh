@@ -175,11 +175,9 @@ dkt_inherit() {
 # that came before this function, noted as early_usr1=1 by the script's first trap, too).
 # Sets status (the run's exit status) and stop_asked (1 after SIGUSR1).
 dkt_run() {
-  local ready=$OUTDIR/.ready.${SLURM_JOB_ID:-$$} held=${early_usr1:-0} tick
-  stop_asked=$held
-  if [ "$held" -eq 1 ]; then say "SIGUSR1 came before the run started: held until it has"; fi
+  local ready=$OUTDIR/.ready.${SLURM_JOB_ID:-$$} held=0 tick
+  stop_asked=0
   pid=''
-  rm -f "$ready"
   forward_usr1() {
     stop_asked=1
     if [ -n "$pid" ] && [ -e "$ready" ]; then
@@ -191,6 +189,14 @@ dkt_run() {
     fi
   }
   trap forward_usr1 USR1
+  # Only now look at the first trap's note: read before this trap was set, a signal coming in
+  # between would set early_usr1 too late and be lost.
+  if [ "${early_usr1:-0}" -eq 1 ] && [ "$held" -eq 0 ]; then
+    held=1
+    stop_asked=1
+    say "SIGUSR1 came before the run started: held until it has"
+  fi
+  rm -f "$ready"
   if [ -n "$log" ]; then
     DKTLBM_READY_FILE=$ready "${launch[@]}" "$exe" "$@" >> "$log" 2>&1 &
   else
