@@ -14,14 +14,15 @@ module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
                      MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_Alltoallv, &
-                     MPI_INTEGER2
+                     MPI_INTEGER2, MPI_Bcast
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
   implicit none
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
-            domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS, domain_resize, domain_move_rows
+            domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS, domain_resize, domain_move_rows, &
+            domain_fill_new_rows
 
   !> fewest rows a slab may hold: the open-end rule (E5) reads the row next to the end row
   integer, parameter :: MIN_SLAB_ROWS = 2
@@ -191,6 +192,44 @@ contains
       end do
     end do
   end subroutine domain_move_rows
+
+  !> Fill the rows a window's growth added (global rows old%ny+1..new%ny of `dst`, split as
+  !! `new`) with copies of the old upper end row of `src` (split as `old`), stored values as
+  !! they are: the zero normal gradient the outflow end (E5) keeps. The fluid that the settling
+  !! particles displace leaves through that end; rows added at rest would stop it at once and
+  !! send a pressure wave down the channel onto the particles (docs/model.md §5). The rank
+  !! that held the row (the last one) sends it to all in one broadcast.
+  subroutine domain_fill_new_rows(old, new, src, dst)
+    type(domain_t), intent(in) :: old, new
+    type(lattice_t), intent(in) :: src
+    type(lattice_t), intent(inout) :: dst
+    real(wp) :: row(old%nx, 0:8)
+    integer :: j, k, nx
+    nx = old%nx
+    if (old%rank == old%nranks - 1) then
+      do k = 0, 8
+        if (src%half) then
+          row(:, k) = real(src%h(1:nx, old%nyl, k), wp)
+        else if (src%single) then
+          row(:, k) = real(src%s(1:nx, old%nyl, k), wp)
+        else
+          row(:, k) = src%d(1:nx, old%nyl, k)
+        end if
+      end do
+    end if
+    call MPI_Bcast(row, 9*nx, mpi_wp, old%nranks - 1, old%comm)
+    do k = 0, 8
+      do j = max(1, old%ny - new%y0 + 1), new%nyl
+        if (dst%half) then
+          dst%h(1:nx, j, k) = int(row(:, k), int16)
+        else if (dst%single) then
+          dst%s(1:nx, j, k) = real(row(:, k), sp)
+        else
+          dst%d(1:nx, j, k) = row(:, k)
+        end if
+      end do
+    end do
+  end subroutine domain_fill_new_rows
 
   subroutine domain_free(dom)
     type(domain_t), intent(inout) :: dom

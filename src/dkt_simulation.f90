@@ -12,7 +12,7 @@ module dkt_simulation
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
                        lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
-                        domain_resize, domain_move_rows, MIN_SLAB_ROWS
+                        domain_resize, domain_move_rows, domain_fill_new_rows, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_particles, only: particles_init, particles_reduce_forces, particles_stable_substeps, &
                            particles_resize_rows, particles_reach_rows, particles_exchange, &
@@ -693,8 +693,8 @@ contains
   !> The window grows to ny rows at its upper end (docs/model.md §5, window.max_above): the
   !! rows are split again over the same ranks (domain_resize), the populations of rows 1..old
   !! ny move to the ranks that now hold them (domain_move_rows), and the new rows at the top
-  !! hold fluid at rest, the equilibrium at rho = 1, u = 0, as the rows entering at the lower
-  !! end do. The lattices, the sweep's row buffers and the particles' per-row sums are sized
+  !! are copies of the old upper end row (domain_fill_new_rows: the outflow's zero gradient,
+  !! not fluid at rest, which would stop the outflow at once). The lattices, the sweep's row buffers and the particles' per-row sums are sized
   !! anew; the caller finds the boundary links (particles_find_links). Called between the sweep
   !! and the swap, where f_next holds the current populations (f as well in place), or at a
   !! resume before the checkpoint's populations are read. Every rank decides a growth from the
@@ -705,8 +705,6 @@ contains
     integer, intent(in) :: ny
     type(domain_t) :: old
     type(lattice_t) :: grown
-    real(wp) :: feq(0:8)
-    integer :: i, j
     logical :: single, shifted, arith4, half
     old = sim%dom
     single = sim%f_next%single
@@ -716,12 +714,7 @@ contains
     call domain_resize(sim%dom, ny)
     call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
     call domain_move_rows(old, sim%dom, sim%f_next, grown)
-    feq = equilibrium(1.0_wp, 0.0_wp, 0.0_wp)
-    do j = max(1, old%ny - sim%dom%y0 + 1), sim%dom%nyl
-      do i = 1, sim%dom%nx
-        call lattice_set_node(grown, i, j, feq)
-      end do
-    end do
+    call domain_fill_new_rows(old, sim%dom, sim%f_next, grown)
     call lattice_free(sim%f)
     if (sim%in_place) then
       sim%f = grown

@@ -25,7 +25,8 @@ Proves:
   start-up summary states is window.above plus the settling-speed scale times the run's
   length, counted in whole growths; only max_above = 0 keeps a window of fixed length;
 - the start-up summary states the memory of the largest window, the figure the memory check
-  takes.
+  takes;
+- the growth does not jolt the disk nearest the upper end (the added rows continue the outflow).
 
 Each fails on the code before window.max_above existed (the key is refused), and the bitwise
 ones on a growth that leaves rows on the wrong rank, sizes a message from one side only or
@@ -119,6 +120,23 @@ def test_the_window_grows_where_a_fixed_one_ends_the_run_and_the_run_goes_on(run
     assert stop_reason(fixed / "case2.h5") == "window_escape"
     with h5py.File(fixed / "case2.h5", "r") as h5:
         assert h5["particles/t"].shape[0] == GROWS_AT + 1
+
+
+def test_the_growth_does_not_jolt_the_disk_near_the_upper_end(runs: Runs) -> None:
+    """The rows a growth adds continue the outflow (copies of the old upper end row), so the
+    smaller disk, 1 D_1 under the upper end and speeding up when the window grows, goes on
+    speeding up: within no 60 steps after the growth does its speed drop by more than 1 %, and
+    its force stays within 10 % of its largest before. Rows added at rest stopped the fluid
+    leaving through the upper end at once and sent a pressure wave down onto the disks: a drop
+    of 10.2 % and a force 1.71 times its largest before (0.3 % and 1.05 now; with a fixed
+    8-D_1 window 0.1 % and 1.04)."""
+    with h5py.File(runs.get(1) / "case2.h5", "r") as h5:
+        speed = [abs(v) for v in h5["particles/v"][:, 1]]
+        force = h5["particles/fy"][:, 1]
+    after = speed[GROWS_AT:]
+    drop = max(a - min(after[i : i + 60]) for i, a in enumerate(after))
+    assert drop < 0.01 * after[0], (drop, after[0])
+    assert max(force[GROWS_AT:]) < 1.1 * max(force[GROWS_AT - 135 : GROWS_AT])
 
 
 @pytest.mark.parametrize("precision", ["single", "single_arith", "half"])
