@@ -694,9 +694,9 @@ contains
   !! rows are split again over the same ranks (domain_resize), the populations of rows 1..old
   !! ny move to the ranks that now hold them (domain_move_rows), and the new rows at the top
   !! are copies of the old upper end row (domain_fill_new_rows: the outflow's zero gradient,
-  !! not fluid at rest, which would stop the outflow at once). The lattices, the sweep's row buffers and the particles' per-row sums are sized
-  !! anew; the caller finds the boundary links (particles_find_links). Called between the sweep
-  !! and the swap, where f_next holds the current populations (f as well in place), or at a
+  !! not fluid at rest, which would stop the outflow at once). The lattices, the sweep's row
+  !! buffers and the particles' per-row sums are sized anew; the caller finds the boundary
+  !! links (particles_find_links). Called between the sweep and the swap, where f_next holds the current populations (f as well in place), or at a
   !! resume before the checkpoint's populations are read. Every rank decides a growth from the
   !! same particle state and every row keeps its values, so the bits do not depend on the
   !! decomposition.
