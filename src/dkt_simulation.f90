@@ -696,8 +696,9 @@ contains
   !! are copies of the old upper end row (domain_fill_new_rows: the outflow's zero gradient,
   !! not fluid at rest, which would stop the outflow at once). The lattices, the sweep's row
   !! buffers and the particles' per-row sums are sized anew; the caller finds the boundary
-  !! links (particles_find_links). Called between the sweep and the swap, where f_next holds the current populations (f as well in place), or at a
-  !! resume before the checkpoint's populations are read. Every rank decides a growth from the
+  !! links (particles_find_links). Called between the sweep and the swap, where f_next holds
+  !! the current populations (f as well in place), or at a resume before the checkpoint's
+  !! populations are read. Every rank decides a growth from the
   !! same particle state and every row keeps its values, so the bits do not depend on the
   !! decomposition.
   subroutine simulation_grow(sim, ny)
