@@ -144,7 +144,7 @@ contains
     integer :: scount(0:old%nranks - 1), sdispl(0:old%nranks - 1)
     integer :: rcount(0:old%nranks - 1), rdispl(0:old%nranks - 1)
     real(wp), allocatable :: sbuf(:), rbuf(:)
-    integer :: r, y0, nyl, lo, hi, j, k, m, nx
+    integer :: r, y0, nyl, lo, hi, j, m, nx
     nx = old%nx
     do r = 0, old%nranks - 1
       ! to r: my old rows that r holds in the new split; from r: r's old rows that I hold
@@ -161,18 +161,8 @@ contains
     end do
     allocate (sbuf(max(1, sum(scount))), rbuf(max(1, sum(rcount))))
     ! the destinations hold consecutive rows, so my rows in order are the messages in order
-    m = 0
     do j = 1, old%nyl
-      do k = 0, 8
-        if (src%half) then
-          sbuf(m + 1:m + nx) = real(src%h(1:nx, j, k), wp)
-        else if (src%single) then
-          sbuf(m + 1:m + nx) = real(src%s(1:nx, j, k), wp)
-        else
-          sbuf(m + 1:m + nx) = src%d(1:nx, j, k)
-        end if
-        m = m + nx
-      end do
+      call stored_row(src, j, nx, sbuf(9*nx*(j - 1) + 1:9*nx*j))
     end do
     call MPI_Alltoallv(sbuf, scount, sdispl, mpi_wp, rbuf, rcount, rdispl, mpi_wp, old%comm)
     ! likewise the sources: my new rows that existed, in order
@@ -180,16 +170,8 @@ contains
     hi = min(new%y0 + new%nyl, old%ny)
     m = 0
     do j = lo - new%y0, hi - new%y0
-      do k = 0, 8
-        if (dst%half) then
-          dst%h(1:nx, j, k) = int(rbuf(m + 1:m + nx), int16)
-        else if (dst%single) then
-          dst%s(1:nx, j, k) = real(rbuf(m + 1:m + nx), sp)
-        else
-          dst%d(1:nx, j, k) = rbuf(m + 1:m + nx)
-        end if
-        m = m + nx
-      end do
+      call store_row(rbuf(m + 1:m + 9*nx), dst, j, nx)
+      m = m + 9*nx
     end do
   end subroutine domain_move_rows
 
@@ -203,33 +185,49 @@ contains
     type(domain_t), intent(in) :: old, new
     type(lattice_t), intent(in) :: src
     type(lattice_t), intent(inout) :: dst
-    real(wp) :: row(old%nx, 0:8)
-    integer :: j, k, nx
-    nx = old%nx
-    if (old%rank == old%nranks - 1) then
-      do k = 0, 8
-        if (src%half) then
-          row(:, k) = real(src%h(1:nx, old%nyl, k), wp)
-        else if (src%single) then
-          row(:, k) = real(src%s(1:nx, old%nyl, k), wp)
-        else
-          row(:, k) = src%d(1:nx, old%nyl, k)
-        end if
-      end do
-    end if
-    call MPI_Bcast(row, 9*nx, mpi_wp, old%nranks - 1, old%comm)
-    do k = 0, 8
-      do j = max(1, old%ny - new%y0 + 1), new%nyl
-        if (dst%half) then
-          dst%h(1:nx, j, k) = int(row(:, k), int16)
-        else if (dst%single) then
-          dst%s(1:nx, j, k) = real(row(:, k), sp)
-        else
-          dst%d(1:nx, j, k) = row(:, k)
-        end if
-      end do
+    real(wp) :: row(9*old%nx)
+    integer :: j
+    if (old%rank == old%nranks - 1) call stored_row(src, old%nyl, old%nx, row)
+    call MPI_Bcast(row, size(row), mpi_wp, old%nranks - 1, old%comm)
+    do j = max(1, old%ny - new%y0 + 1), new%nyl
+      call store_row(row, dst, j, old%nx)
     end do
   end subroutine domain_fill_new_rows
+
+  !> Row j (columns 1..nx) of `lat` as stored, the nine populations one after the other, in
+  !! 8 bytes (a 4-byte value or a 16-bit code converts exactly): what rows travel as.
+  subroutine stored_row(lat, j, nx, v)
+    type(lattice_t), intent(in) :: lat
+    integer, intent(in) :: j, nx
+    real(wp), intent(out) :: v(nx, 0:8)
+    integer :: k
+    do k = 0, 8
+      if (lat%half) then
+        v(:, k) = real(lat%h(1:nx, j, k), wp)
+      else if (lat%single) then
+        v(:, k) = real(lat%s(1:nx, j, k), wp)
+      else
+        v(:, k) = lat%d(1:nx, j, k)
+      end if
+    end do
+  end subroutine stored_row
+
+  !> The inverse of stored_row: row j of `lat` from v.
+  subroutine store_row(v, lat, j, nx)
+    integer, intent(in) :: j, nx
+    real(wp), intent(in) :: v(nx, 0:8)
+    type(lattice_t), intent(inout) :: lat
+    integer :: k
+    do k = 0, 8
+      if (lat%half) then
+        lat%h(1:nx, j, k) = int(v(:, k), int16)
+      else if (lat%single) then
+        lat%s(1:nx, j, k) = real(v(:, k), sp)
+      else
+        lat%d(1:nx, j, k) = v(:, k)
+      end if
+    end do
+  end subroutine store_row
 
   subroutine domain_free(dom)
     type(domain_t), intent(inout) :: dom

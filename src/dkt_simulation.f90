@@ -698,9 +698,8 @@ contains
   !! buffers and the particles' per-row sums are sized anew; the caller finds the boundary
   !! links (particles_find_links). Called between the sweep and the swap, where f_next holds
   !! the current populations (f as well in place), or at a resume before the checkpoint's
-  !! populations are read. Every rank decides a growth from the
-  !! same particle state and every row keeps its values, so the bits do not depend on the
-  !! decomposition.
+  !! populations are read. Every rank decides a growth from the same particle state and every
+  !! row keeps its values, so the bits do not depend on the decomposition.
   subroutine simulation_grow(sim, ny)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: ny
