@@ -432,15 +432,21 @@ def signalling_stand_ins(bin_dir: Path, logs: Path) -> None:
     """Stand-ins for the ordinary commands the scripts run: each counts its call in
     logs/calls and, on the call numbered SIGNAL_AT, sends SIGUSR1 to the batch shell
     (BATCH_PID) while it is still running (as Slurm's signal may come at any moment), then
-    runs the real command."""
+    runs the real command. The count is taken under a lock: the commands of a pipeline run
+    at once, and without it two of them could read the file while a third had emptied it to
+    write, restarting the count (the signal then came after the run, a spurious failure)."""
+    flock = shutil.which("flock")
+    assert flock, "flock (util-linux)"
     for name in SIGNALLING_COMMANDS:
         real = shutil.which(name)
         assert real, name
         path = bin_dir / name
         path.write_text(
             "#!/bin/sh\n"
+            f"exec 9>> {logs}/calls.lock; {flock} 9\n"
             f"c=0; [ -e {logs}/calls ] && read -r c < {logs}/calls\n"
             f"c=$((c + 1)); echo $c > {logs}/calls\n"
+            "exec 9>&-\n"
             'if [ "$c" = "${SIGNAL_AT:-0}" ] && [ -n "${BATCH_PID:-}" ]; then\n'
             '  kill -USR1 "$BATCH_PID"\n'
             "fi\n"
