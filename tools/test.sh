@@ -10,4 +10,8 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$root/tools/setup.sh"
 cd "$root"
-exec ctest --preset release -LE 'perf|long' -j "$(nproc)" "$@"
+# Twice as many tests at once as there are cores: most tests are many short runs whose ranks
+# wait on each other, on mpirun's start-up and on the file system, and a test declares as many
+# processors as its largest run has ranks. Measured on a 2-core VM (AMD EPYC, 32 MiB L3), the
+# whole suite took 1327 s with -j 2 (1.0 core busy on average) and 1092 s with -j 4 (1.4).
+exec ctest --preset release -LE 'perf|long' -j "$((2 * $(nproc)))" "$@"
