@@ -40,6 +40,10 @@ module dkt_choices
   character(len=*), parameter, public :: FLOW_NAMES = 'rest taylor_green'
   integer, parameter, public :: FLOW_REST = 1, FLOW_TAYLOR_GREEN = 2
 
+  !> initial.pressure: the fluid's pressure at t = 0, uniform or holding up the free particles
+  character(len=*), parameter, public :: PRESSURE_NAMES = 'uniform hydrostatic'
+  integer, parameter, public :: PRESSURE_UNIFORM = 1, PRESSURE_HYDROSTATIC = 2
+
   !> particles.motion: moved by fluid and gravity (E8), at rest, or at its given velocity
   character(len=*), parameter, public :: MOTION_NAMES = 'free fixed prescribed'
   integer, parameter, public :: MOTION_FREE = 1, MOTION_FIXED = 2, MOTION_PRESCRIBED = 3

@@ -325,6 +325,15 @@ contains
     integer :: k, m
     type(config_t), pointer :: c
     c => ck%c
+    ! E13 takes gaps from h_min up to its cut-off h_c
+    if (c%collision%lubrication .and. &
+        .not. (c%collision%lubrication_min < c%collision%lubrication_range)) then
+      err = from(ck, 'collision.lubrication_min collision.lubrication_range')// &
+            ': &collision lubrication_min = '//val(ck, 'collision', 'lubrication_min')// &
+            ' is not below lubrication_range = '//val(ck, 'collision', 'lubrication_range')// &
+            ' (lattice spacings); allowed: lubrication_min < lubrication_range'
+      return
+    end if
     associate (p => c%particles)
       call first_overlap(p%x(1:p%count), p%y(1:p%count), p%diameter(1:p%count), k, m)
       if (k == 0) return

@@ -9,7 +9,7 @@ module dkt_config_types
   use dkt_kinds, only: wp, MAX_PARTICLES
   use dkt_choices, only: choice_code, END_NAMES, COLLISION_NAMES, STREAMING_NAMES, &
                          PRECISION_NAMES, PROFILE_NAMES, FLOW_NAMES, MOTION_NAMES, BB_NAMES, &
-                         MOMENTUM_NAMES, INTERIOR_NAMES
+                         MOMENTUM_NAMES, INTERIOR_NAMES, PRESSURE_NAMES
   use dkt_registry, only: registry_t, key_t, add_real, add_reals, add_integer, add_logical, &
                           add_string, add_choice, add_choices, rebind_grown
   use dkt_text, only: itoa
@@ -84,6 +84,8 @@ module dkt_config_types
     character(len=16) :: flow = 'rest'    !! 'rest' or 'taylor_green'
     integer :: flow_kind = 0              !! FLOW_* of flow (config_choices)
     real(wp) :: velocity = 0.0_wp         !! cm/s, amplitude of the initial flow
+    character(len=16) :: pressure = 'uniform' !! 'uniform' or 'hydrostatic'
+    integer :: pressure_kind = 0          !! PRESSURE_* of pressure (config_choices)
   contains
     procedure :: register => initial_register
   end type initial_cfg_t
@@ -173,6 +175,7 @@ module dkt_config_types
     integer :: bounce_back_kind = 0         !! BB_* of bounce_back (config_choices)
     integer :: momentum_kind = 0            !! MOMENTUM_* of momentum (config_choices)
     integer :: interior_kind = 0            !! INTERIOR_* of interior (config_choices)
+    logical :: average_force = .true.       !! move by the mean force of this step and the last (E8)
   contains
     procedure :: register => coupling_register
   end type coupling_cfg_t
@@ -183,6 +186,9 @@ module dkt_config_types
     real(wp) :: stiffness_overlap = 1.0e-7_wp !! cm^2 s^2/g, eps'_p of E10 (per unit depth)
     real(wp) :: range = 1.0_wp                !! threshold xi of E10, in lattice spacings
     integer :: substeps = 1                   !! particle sub-steps per fluid step
+    logical :: lubrication = .false.          !! the lubrication correction E13
+    real(wp) :: lubrication_range = 1.0_wp    !! its cut-off h_c, in lattice spacings
+    real(wp) :: lubrication_min = 0.01_wp     !! the smallest gap h_min it is taken at, spacings
   contains
     procedure :: register => collision_register
   end type collision_cfg_t
@@ -312,6 +318,7 @@ contains
     c%lbm%precision_kind = choice_code(c%lbm%precision, PRECISION_NAMES)
     c%inlet%profile_kind = choice_code(c%inlet%profile, PROFILE_NAMES)
     c%initial%flow_kind = choice_code(c%initial%flow, FLOW_NAMES)
+    c%initial%pressure_kind = choice_code(c%initial%pressure, PRESSURE_NAMES)
     if (allocated(c%particles%motion)) &
       c%particles%motion_kind = [(choice_code(c%particles%motion(k), MOTION_NAMES), &
                                   k=1, size(c%particles%motion))]
@@ -456,6 +463,10 @@ contains
                     'flow at t = 0; taylor_green needs periodic sides and ends')
     call add_real(reg, 'initial', 'velocity', self%velocity, 'cm/s', &
                   'amplitude of the initial flow', ge=0.0_wp)
+    call add_choice(reg, 'initial', 'pressure', self%pressure, PRESSURE_NAMES, &
+                    'pressure at t = 0: uniform, or hydrostatic: at each height the weight '// &
+                    'less buoyancy of the free particles above it per unit width, so that a '// &
+                    'closed box does not ring when they start to fall')
   end subroutine initial_register
 
   !> Register the keys of &particles, each bound to its component of `self`.
@@ -568,6 +579,10 @@ contains
     call add_choice(reg, 'coupling', 'interior', self%interior, INTERIOR_NAMES, &
                     'nodes inside a particle: reset to the rigid-body equilibrium, or fluid '// &
                     'bounced from both sides of the surface')
+    call add_logical(reg, 'coupling', 'average_force', self%average_force, 'move a free '// &
+                     'particle by the mean hydrodynamic force and torque of this step and '// &
+                     'the last (Ladd), which keeps a light disk near a wall or another disk '// &
+                     'stable; .false. = the force of the step alone (the paper''s E8)')
   end subroutine coupling_register
 
   !> Register the keys of &collision, each bound to its component of `self`.
@@ -585,6 +600,15 @@ contains
     call add_integer(reg, 'collision', 'substeps', self%substeps, '-', &
                      'particle sub-steps per fluid time step (for a stiff repulsion)', &
                      ge=1, le=1000)
+    call add_logical(reg, 'collision', 'lubrication', self%lubrication, 'the lubrication '// &
+                     'correction (E13): the normal force of the film between two disks or a '// &
+                     'disk and a wall below the gap the lattice resolves')
+    call add_real(reg, 'collision', 'lubrication_range', self%lubrication_range, '-', &
+                  'cut-off h_c of E13 in lattice spacings: the gap from which the lattice '// &
+                  'resolves the film', gt=0.0_wp, le=10.0_wp)
+    call add_real(reg, 'collision', 'lubrication_min', self%lubrication_min, '-', &
+                  'the smallest gap h_min of E13 in lattice spacings (a roughness): a '// &
+                  'smaller gap takes the force of this one', gt=0.0_wp, le=10.0_wp)
   end subroutine collision_register
 
   !> Register the keys of &run, each bound to its component of `self`.

@@ -408,10 +408,14 @@ contains
       else
         fs(o + ahead(d)) = real(fb, sp)
       end if
-      ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar); the
-      ! Galilean-invariant form replaces e by e - u_w
-      fx = ex(d)*(fi + fb)
-      fy = ey(d)*(fi + fb)
+      ! E7: F_i = e_i f_i* - e_ibar f_ibar(t+1) = e_i (f_i* + f_ibar), taken against the rest
+      ! state (f_i = w_i): the uniform rest pressure rho_0 c_s^2 adds exactly nothing to a disk
+      ! that fluid surrounds, but where a disk's nodes border a wall or another disk with no
+      ! fluid between, their links are missing and it would press the disk there with
+      ! rho_0 c_s^2 per spacing, hundreds of times a light disk's weight (docs/stability.md).
+      ! The Galilean-invariant form replaces e by e - u_w (its u_w term holds no rest part).
+      fx = ex(d)*(fi + fb - 2.0_wp*w(d))
+      fy = ey(d)*(fi + fb - 2.0_wp*w(d))
       if (galilean) then
         fx = fx - uwx*(fi - fb)
         fy = fy - uwy*(fi - fb)

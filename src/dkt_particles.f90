@@ -27,6 +27,7 @@ module dkt_particles
   use dkt_cells, only: cells_t
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
+  use dkt_lubrication, only: lubrication_t
   use dkt_particle_state, only: particle_t, particle_state_t, NPACK, state_fit, state_put, &
                                 state_copy, state_copy_first, state_pack, state_unpack, &
                                 record_unpack, fit_int, fit_real
@@ -60,9 +61,18 @@ module dkt_particles
     integer, allocatable :: home(:)     !! the rank that owns disk k of p
     integer :: scheme = BB_YU
     logical :: galilean = .false.       !! E7 with (e - u_w) (Wen et al. 2014)
+    !> E8 moves a free particle by the mean hydrodynamic force and torque of this step and the
+    !! last (coupling.average_force): drive(:, k) holds what moves disk k of p this step
+    logical :: average_force = .false.
+    real(wp), allocatable :: drive(:, :)
     real(wp) :: gravity = 0             !! g, lattice units, along -y
     real(wp) :: stiffness = 1, stiffness_overlap = 1 !! eps_p, eps'_p, lattice units (E10)
     real(wp) :: range = 1               !! threshold xi (E10), lattice spacings
+    !> the lubrication correction (E13; off unless collision.lubrication)
+    type(lubrication_t) :: lub
+    !> the gap within which a partner or a wall acts on a disk: the contact range, or the
+    !! lubrication cut-off when that is larger
+    real(wp) :: partner_range = 1
     integer :: substeps = 1
     integer :: substeps_needed = 1      !! particles_stable_substeps, over every particle
     real(wp) :: rmax = 0                !! the largest radius
@@ -139,7 +149,7 @@ contains
   !! rank from the whole scene; each then keeps its own and its ghosts (particles_distribute).
   subroutine particles_init(ps, dom, x, y, r, u, v, omega, density_ratio, motion, scheme, &
                             galilean, gravity, stiffness, stiffness_overlap, range, substeps, &
-                            fluid_interior)
+                            fluid_interior, average_force, lub)
     type(particles_t), intent(out) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: x(:), y(:), r(:), u(:), v(:), omega(:), density_ratio(:)
@@ -147,6 +157,8 @@ contains
     logical, intent(in) :: galilean
     real(wp), intent(in) :: gravity, stiffness, stiffness_overlap, range
     logical, intent(in), optional :: fluid_interior !! coupling.interior = 'fluid'
+    logical, intent(in), optional :: average_force  !! coupling.average_force
+    type(lubrication_t), intent(in), optional :: lub !! collision.lubrication and its keys
     type(particle_t), allocatable :: all(:)
     integer :: k
     ps%ntotal = size(x)
@@ -174,12 +186,17 @@ contains
     ps%range = range
     ps%substeps = substeps
     ps%rmax = max(0.0_wp, maxval(r))
-    ps%marg = particles_reach(ps%rmax, range)
+    if (present(lub)) ps%lub = lub
+    ps%partner_range = range
+    if (ps%lub%on) ps%partner_range = max(range, ps%lub%cutoff)
+    ps%marg = particles_reach(ps%rmax, ps%partner_range)
     ps%substeps_needed = stable_substeps(ps, all)
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0), ps%lrow(0))
     allocate (ps%rk(0), ps%rj(0), ps%rows(3, 0))
     allocate (ps%sdn(0), ps%sup(0), ps%rdn(0), ps%rup(0))
     if (present(fluid_interior)) ps%fluid_interior = fluid_interior
+    if (present(average_force)) ps%average_force = average_force
+    allocate (ps%drive(3, 0))
     if (ps%fluid_interior) then
       allocate (ps%inner(0))
       allocate (ps%rho_first(dom%nx), ps%rho_last(dom%nx), ps%rho_below(dom%nx), &
@@ -488,6 +505,7 @@ contains
       end do
     end do
     call swap(ps, dom, NENTRY, nd, nu, md, mu)
+    call fit_drive(ps%drive, ps%n)
     b = 1
     c = 1
     do k = 1, ps%n
@@ -508,11 +526,31 @@ contains
         if (nint(ps%rup(NENTRY*(c - 1) + 1)) == id) s = s + ps%rup(NENTRY*(c - 1) + 3:NENTRY*c)
         c = c + 1
       end do
+      ! E8's drive: the step's force, or its mean with the last step's (the record's force
+      ! until now, which travels with the particle and is kept in checkpoints; zero before
+      ! the first step)
+      if (ps%average_force) then
+        ps%drive(:, k) = 0.5_wp*(s + [ps%p%fx(k), ps%p%fy(k), ps%p%torque(k)])
+      else
+        ps%drive(:, k) = s
+      end if
       ps%p%fx(k) = s(1)
       ps%p%fy(k) = s(2)
       ps%p%torque(k) = s(3)
     end do
   end subroutine particles_reduce_forces
+
+  !> Make drive at least n columns long (twice as long when it grows); its values are rewritten
+  !! before they are read in every step.
+  subroutine fit_drive(drive, n)
+    real(wp), allocatable, intent(inout) :: drive(:, :)
+    integer, intent(in) :: n
+    integer :: m
+    if (size(drive, 2) >= n) return
+    m = max(n, 2*size(drive, 2), 16)
+    deallocate (drive)
+    allocate (drive(3, m))
+  end subroutine fit_drive
 
   !> Send nd items of `unit` numbers (ps%sdn) to the slab below and nu (ps%sup) to the slab
   !! above; receive md from below into ps%rdn and mu from above into ps%rup (0 at a closed or

@@ -10,7 +10,8 @@ module dkt_report
   use dkt_memory, only: rank_memory, fixed2, MIB
   use dkt_store, only: lattice_bytes
   use dkt_domain, only: domain_t, domain_resize
-  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST, PRECISION_HALF
+  use dkt_choices, only: STREAMING_IN_PLACE, END_VELOCITY, FLOW_REST, PRECISION_HALF, &
+                         PRESSURE_HYDROSTATIC
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
@@ -154,10 +155,14 @@ contains
         line = trim(line)//', inlet '//trim(cfg%inlet%profile)
       if (cfg%initial%flow_kind /= FLOW_REST) &
         line = trim(line)//', initial '//trim(cfg%initial%flow)
+      if (cfg%initial%pressure_kind == PRESSURE_HYDROSTATIC) &
+        line = trim(line)//', initial pressure hydrostatic'
       if (sim%particles_on) then
         line = trim(line)//'; particles on (E6 '//trim(cfg%coupling%bounce_back)// &
                ', E7 '//trim(cfg%coupling%momentum)//', interior '// &
-               trim(cfg%coupling%interior)//', E8-E11)'
+               trim(cfg%coupling%interior)//', E8-E11'
+        if (cfg%coupling%average_force) line = trim(line)//', E8 force averaged over two steps'
+        line = trim(line)//')'
       else
         line = trim(line)//'; particles off'
       end if

@@ -4,16 +4,17 @@
 module dkt_simulation
   use ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
   use mpi_f08, only: MPI_Comm
-  use dkt_kinds, only: wp, pi, cs2, i8
+  use dkt_kinds, only: wp, i8
   use dkt_errors, only: fatal_all, internal_error
   use dkt_config, only: config_t, lattice_params_t
-  use dkt_lattice, only: equilibrium
   use dkt_mrt, only: collision_init, sweep_init, sweep_rows
-  use dkt_store, only: lattice_t, lattice_allocate, lattice_free, lattice_set_node, &
+  use dkt_store, only: lattice_t, lattice_allocate, lattice_free, &
                        lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
                         domain_resize, domain_move_rows, domain_fill_new_rows, MIN_SLAB_ROWS
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
+  use dkt_lubrication, only: lubrication_t
+  use dkt_initial, only: initial_state
   use dkt_particles, only: particles_init, particles_reduce_forces, particles_stable_substeps, &
                            particles_resize_rows, particles_reach_rows, particles_exchange, &
                            particles_agree, particles_min, particles_first_above_own
@@ -24,8 +25,7 @@ module dkt_simulation
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
                          MOTION_FIXED, MOTION_PRESCRIBED, &
                          BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
-                         STREAMING_IN_PLACE, MOMENTUM_GALILEAN, INTERIOR_FLUID, FLOW_REST, &
-                         FLOW_TAYLOR_GREEN
+                         STREAMING_IN_PLACE, MOMENTUM_GALILEAN, INTERIOR_FLUID
   use dkt_diagnostics, only: guard_set_advice, guard_particle_speed, pair_diag_init, &
                              pair_diag_update, pair_gaps
   use dkt_window, only: window_init, window_offset, window_follow, window_escaped, &
@@ -108,7 +108,7 @@ contains
         call lattice_allocate(sim%f_next, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
       end if
       call sweep_init(sim%ws, sim%dom%nxp)
-      call initialise(sim)
+      call initial_state(sim%cfg, sim%lp, sim%dom, sim%f)
     end if
     sim%window_on = cfg%window%enabled
     if (sim%window_on) then
@@ -136,6 +136,7 @@ contains
     integer :: scheme
     character(len=256) :: line
     character(len=:), allocatable :: needs
+    type(lubrication_t) :: lub
     n = sim%cfg%particles%count
     allocate (motion(n))
     do k = 1, n
@@ -153,11 +154,17 @@ contains
       call internal_error('setup_particles: coupling.bounce_back code '//itoa(scheme))
     end select
     ! lattice units throughout (lattice_from); y counts from the window's lower end at t = 0
+    ! E13 in lattice units: mu = rho_f nu_lb with rho_f = 1, gaps in spacings
+    lub%on = sim%cfg%collision%lubrication
+    lub%mu = sim%lp%nu_lb
+    lub%cutoff = sim%cfg%collision%lubrication_range
+    lub%hmin = sim%cfg%collision%lubrication_min
     associate (p => sim%lp%particles, c => sim%cfg%collision)
       call particles_init(sim%parts, sim%dom, p%x, p%y, p%r, p%u, p%v, p%omega, p%density, &
                           motion, scheme, sim%cfg%coupling%momentum_kind == MOMENTUM_GALILEAN, &
                           p%gravity, p%stiffness, p%stiffness_overlap, c%range, c%substeps, &
-                          sim%cfg%coupling%interior_kind == INTERIOR_FLUID)
+                          sim%cfg%coupling%interior_kind == INTERIOR_FLUID, &
+                          sim%cfg%coupling%average_force, lub)
     end associate
     sim%particles_move = any(motion /= MOTION_FIXED)
     ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so;
@@ -186,40 +193,6 @@ contains
     call particles_find_links(sim%parts, sim%dom)
     if (lattice_allocated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
-
-  !> Initial populations: equilibrium of the initial flow (post-collision state at t = 0).
-  subroutine initialise(sim)
-    type(simulation_t), intent(inout) :: sim
-    integer :: x, j, jg
-    real(wp) :: kx, ky, u0, xc, yc, ux, uy, p
-    ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
-    select case (sim%cfg%initial%flow_kind)
-    case (FLOW_TAYLOR_GREEN)
-      ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
-      kx = 2.0_wp*pi/real(sim%lp%nx, wp)
-      ky = 2.0_wp*pi/real(sim%lp%ny, wp)
-      u0 = sim%lp%u_init_lb
-      do j = 1, sim%dom%nyl
-        jg = sim%dom%y0 + j
-        do x = 1, sim%lp%nx
-          xc = real(x, wp) - 0.5_wp
-          yc = real(jg, wp) - 0.5_wp
-          ux = -u0*cos(kx*xc)*sin(ky*yc)
-          uy = u0*sin(kx*xc)*cos(ky*yc)
-          p = -0.25_wp*u0*u0*(cos(2.0_wp*kx*xc) + cos(2.0_wp*ky*yc))
-          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp + p/cs2, ux, uy))
-        end do
-      end do
-    case (FLOW_REST)
-      do j = 1, sim%dom%nyl
-        do x = 1, sim%lp%nx
-          call lattice_set_node(sim%f, x, j, equilibrium(1.0_wp, 0.0_wp, 0.0_wp))
-        end do
-      end do
-    case default
-      call internal_error('initialise: initial.flow code '//itoa(sim%cfg%initial%flow_kind))
-    end select
-  end subroutine initialise
 
   !> One time step n of the solver (docs/model.md §1–2): stream-collide with the boundaries,
   !! and with particles E6–E11 and the window; f_next becomes f, and the pair's gap is sampled.

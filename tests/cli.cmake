@@ -28,3 +28,15 @@ dkt_add_pytest(NAME cli_output_contract FILE tests/test_output_contract.py LABEL
 # ended early. Runs of a few seconds each on 2 ranks.
 dkt_add_pytest(NAME restart_stops FILE tests/test_stops.py LABELS mpi regression PROCESSORS 2
   TIMEOUT 600)
+# test_contact_stability.py: light disks held at contact with walls and with each other for 10^5
+# steps (a disk on the floor, in a corner, a pile of three) at 8 and 16 per D, contact range 1 to
+# 3 spacings and 0.5 with lubrication, on 1 and 2 ranks (uneven slabs, bitwise the same): no
+# guard stop, no overlap, at rest within the contact range (docs/stability.md, "Disks at
+# contact"). About 3 min on 2 cores.
+dkt_add_pytest(NAME stability_contact FILE tests/test_contact_stability.py LABELS mpi stability
+  PROCESSORS 2 TIMEOUT 900)
+# test_lubrication.py: a light disk draining the film to the floor and to a fixed disk at 8 per D
+# follows the 2-D lubrication theory within 25 % at gaps of 0.1-0.3 spacings with E13, misses it
+# by more than 2x without, and gives the same bits on 2 ranks (docs/model.md §4). About 10 s.
+dkt_add_pytest(NAME lubrication FILE tests/test_lubrication.py LABELS mpi stability PROCESSORS 2
+  TIMEOUT 300)

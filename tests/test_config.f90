@@ -1411,7 +1411,7 @@ contains
         deallocate (codes)
       end associate
     end do
-    call check('every allowed choice has a constant of its own (12 keys)', ok .and. n == 12)
+    call check('every allowed choice has a constant of its own (13 keys)', ok .and. n == 13)
   end subroutine test_choice_codes
 
   !> The constant config_choices set for the choice key `key` of `c` (its first element for
@@ -1428,6 +1428,7 @@ contains
     case ('lbm.precision'); code = c%lbm%precision_kind
     case ('inlet.profile'); code = c%inlet%profile_kind
     case ('initial.flow'); code = c%initial%flow_kind
+    case ('initial.pressure'); code = c%initial%pressure_kind
     case ('particles.motion'); code = c%particles%motion_kind(1)
     case ('coupling.bounce_back'); code = c%coupling%bounce_back_kind
     case ('coupling.momentum'); code = c%coupling%momentum_kind

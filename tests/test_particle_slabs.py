@@ -170,6 +170,42 @@ def test_a_restart_on_another_rank_count_during_migrations_gives_the_same_bits(
             assert want[name][()].tobytes() == got[name][()].tobytes(), name
 
 
+# the suspension scenes' models (docs/suspensions.md): the lubrication films (E13) with a contact
+# range of half a spacing, and the fluid started with the pressure that holds up the disks
+MODELS = [
+    "--set",
+    "collision.lubrication=.true.",
+    "--set",
+    "collision.range=0.5",
+    "--set",
+    "initial.pressure=hydrostatic",
+]
+
+
+@pytest.fixture(scope="module")
+def one_rank_models(scene: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("models") / "run"
+    launch(scene, 1, out, MODELS)
+    return out
+
+
+@pytest.mark.parametrize("ranks,tcp", [(3, True), (4, False)])
+def test_the_suspension_models_give_the_same_bits_on_every_rank_count(
+    scene: Path, one_rank: Path, one_rank_models: Path, tmp_path: Path, ranks: int, tcp: bool
+) -> None:
+    """With lubrication, a contact range of half a spacing and the hydrostatic start, every
+    dataset equals the 1-rank run's byte for byte, and that run is not the one without them."""
+    out = tmp_path / "run"
+    launch(scene, ranks, out, MODELS, tcp=tcp)
+    want, got = datasets(one_rank_models / "box.h5"), datasets(out / "box.h5")
+    assert want.keys() == got.keys()
+    differ = [name for name in want if want[name] != got[name]]
+    assert not differ, f"differ on {ranks} ranks: {differ[:5]}"
+    plain = datasets(one_rank / "box.h5")
+    first = min(name for name in want if name.endswith("/rho"))
+    assert plain[first] != want[first], "the models changed nothing"
+
+
 MESSAGES = re.compile(
     r"particle messages per step: ([0-9.]+) messages to neighbouring slabs, "
     r"([0-9.]+) collectives"
@@ -217,8 +253,14 @@ def test_a_window_adds_one_reduction_per_step(tmp_path: Path, ranks: int) -> Non
         ROOT / "input" / "case1.nml",
         ranks,
         tmp_path / "run",
-        ["--set", "lbm.cells_per_diameter=8", "--set", "run.steps=60",
-         "--set", "run.checkpoint_every=0"],
+        [
+            "--set",
+            "lbm.cells_per_diameter=8",
+            "--set",
+            "run.steps=60",
+            "--set",
+            "run.checkpoint_every=0",
+        ],
     )
     found = MESSAGES.search(log)
     assert found, log
@@ -344,8 +386,12 @@ def test_work_per_step_is_each_slabs_own(tmp_path: Path) -> None:
     scene = box_scene(tmp_path / "box.nml", 6, [1.1, 0.97, 0.84, 0.71, 0.58, 0.45])
     seen = {}
     for ranks in (1, 3):
-        log = launch(scene, ranks, tmp_path / f"run{ranks}",
-                     ["--set", "run.steps=20", "--set", "run.checkpoint_every=0"])
+        log = launch(
+            scene,
+            ranks,
+            tmp_path / f"run{ranks}",
+            ["--set", "run.steps=20", "--set", "run.checkpoint_every=0"],
+        )
         found = WORK.search(log)
         assert found, log
         seen[ranks] = [int(v) for v in found.groups()]
