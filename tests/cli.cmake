@@ -30,11 +30,11 @@ dkt_add_pytest(NAME restart_stops FILE tests/test_stops.py LABELS mpi regression
   TIMEOUT 600)
 # test_contact_stability.py: light disks held at contact with walls and with each other for 10^5
 # steps (a disk on the floor, in a corner, a pile of three) at 8 and 16 per D, contact range 1 to
-# 3 spacings and 0.5 with lubrication, on 1 and 2 ranks (uneven slabs, bitwise the same): no
-# guard stop, no overlap, at rest within the contact range (docs/stability.md, "Disks at
-# contact"). About 3 min on 2 cores.
+# 3 spacings and 0.5 with lubrication, Yu's bounce-back and halfway and BFL, on 1 and 2 ranks
+# (uneven slabs, bitwise the same): no guard stop, no overlap, at rest within the contact range
+# (docs/stability.md, "Disks at contact"). About 5 min on 2 cores.
 dkt_add_pytest(NAME stability_contact FILE tests/test_contact_stability.py LABELS mpi stability
-  PROCESSORS 2 TIMEOUT 900)
+  PROCESSORS 2 TIMEOUT 1500)
 # test_lubrication.py: a light disk draining the film to the floor and to a fixed disk at 8 per D
 # follows the 2-D lubrication theory within 25 % at gaps of 0.1-0.3 spacings with E13, misses it
 # by more than 2x without, and gives the same bits on 2 ranks (docs/model.md §4). About 10 s.

@@ -4,7 +4,9 @@ Light disks (rho_p/rho_f = 1.01, D = 0.0625 cm: the suspension scenes' disks) ar
 the floor of a small closed box and held there for 10^5 steps, at 8 and 16 spacings per D, with
 a contact range xi (`collision.range`) of 1, 2 and 3 spacings, and of half a spacing with the
 lubrication correction (E13, `collision.lubrication`), on 1 and 2 ranks (the box has an odd
-number of rows: the slabs are uneven). Three arrangements:
+number of rows: the slabs are uneven), with Yu's bounce-back (the scenes'), and with `halfway`
+and `bfl` at 8 per D with a range of 2 and at 16 per D with a range of 1 (before the fixes all
+six `halfway` cases stopped on the Mach guard, and two of the `bfl` ones). Three arrangements:
 
 - `wall`: one disk settles onto the floor;
 - `corner`: one disk starts in the bottom-left corner, just outside the contact range of the
@@ -85,7 +87,7 @@ def layout(kind: str, cpd: int, xi: float) -> tuple[float, float, list[tuple[flo
     raise ValueError(kind)
 
 
-def scene(kind: str, cpd: int, xi: float, lubrication: bool = False) -> str:
+def scene(kind: str, cpd: int, xi: float, lubrication: bool = False, scheme: str = "yu") -> str:
     width, height, centres = layout(kind, cpd, xi)
     n = len(centres)
     dx = D / cpd
@@ -103,6 +105,9 @@ def scene(kind: str, cpd: int, xi: float, lubrication: bool = False) -> str:
   diameter = {n}*{D!r}, density = {n}*1.01, motion = {n}*'free', gravity = 980.0
   x = {xs}
   y = {ys}
+/
+&coupling
+  bounce_back = '{scheme}'
 /
 &collision
   range = {xi!r}, lubrication = {".true." if lubrication else ".false."}
@@ -122,16 +127,27 @@ def series(h5file: Path) -> dict[str, np.ndarray]:
         return {k: h5["particles"][k][()] for k in h5["particles"]}
 
 
-@pytest.mark.parametrize(
-    ("xi", "lubrication"), [(1.0, False), (2.0, False), (3.0, False), (0.5, True)]
-)
-@pytest.mark.parametrize("cpd", [8, 16])
-@pytest.mark.parametrize("kind", ["wall", "corner", "pile"])
+KINDS = ("wall", "corner", "pile")
+# (kind, spacings per D, contact range, lubrication, bounce-back)
+CASES = [
+    (kind, cpd, xi, lub, "yu")
+    for kind in KINDS
+    for cpd in (8, 16)
+    for xi, lub in ((1.0, False), (2.0, False), (3.0, False), (0.5, True))
+] + [
+    (kind, cpd, xi, False, scheme)
+    for scheme in ("halfway", "bfl")
+    for kind in KINDS
+    for cpd, xi in ((8, 2.0), (16, 1.0))
+]
+
+
+@pytest.mark.parametrize(("kind", "cpd", "xi", "lubrication", "scheme"), CASES)
 def test_disks_rest_at_contact_for_1e5_steps(
-    tmp_path: Path, kind: str, cpd: int, xi: float, lubrication: bool
+    tmp_path: Path, kind: str, cpd: int, xi: float, lubrication: bool, scheme: str
 ):
     nml = tmp_path / f"{kind}.nml"
-    nml.write_text(scene(kind, cpd, xi, lubrication))
+    nml.write_text(scene(kind, cpd, xi, lubrication, scheme))
     width, height, _ = layout(kind, cpd, xi)
     dx = D / cpd
     out = {}
