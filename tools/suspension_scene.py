@@ -17,13 +17,15 @@ literature set-up in its comment header:
   under the lid of a closed 4 cm x 24 cm box (at least 10 000 disks).
 
 The lattice spacing is set by ``&lbm cells_per_diameter`` (the spacings across the smallest
-disk, 10 by default); the arrangement does not depend on it. Every gap between two disk
-surfaces, and between a disk and a wall, is at least one spacing plus the contact range
-(``&collision range``: 3 spacings by default, or ``--range``), i.e. 4 spacings by default. The
-wall force (E11) acts within half the contact range: with the DKT scenes' 2 spacings a disk
-packed against a side wall leaves one row of fluid and the Mach guard stops the run
-(docs/suspensions.md), so suspensions take 3. The script refuses a resolution that is too
-coarse for this and names the smallest that works.
+disk, 10 by default); the arrangement does not depend on it. The fluid starts with the pressure
+that holds up the disks' weight less buoyancy (``&initial pressure = 'hydrostatic'``), so that
+the closed box does not ring when they start to fall, and a bulk viscosity 63 times the
+shear viscosity (``&lbm s_e = 0.1``) damps what sound remains. The scenes take the lubrication
+correction (E13, ``&collision lubrication``; ``--no-lubrication`` leaves it out) and a contact
+range (``&collision range``) of half a spacing, or ``--range``, so that a bed packs as close as
+its disks allow (docs/suspensions.md). Every gap between two disk surfaces, and between a disk
+and a wall, is at least one spacing plus the contact range. The script refuses a resolution
+that is too coarse for this and names the smallest that works.
 
     python3 tools/suspension_scene.py --kind sediment504 --out input/sediment504.nml
     python3 tools/suspension_scene.py --kind bidisperse --out input/bidisperse.nml
@@ -43,8 +45,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 KINDS = ("sediment504", "sediment504_dense", "bidisperse", "sediment10k")
-RANGE = 3.0  # &collision range, in lattice spacings, the default (docs/suspensions.md)
+RANGE = 0.5  # &collision range, in lattice spacings, the default (docs/suspensions.md)
 TAU = 0.65  # the shipped particle scenes' relaxation time
+S_E = 0.1  # &lbm s_e: the bulk rate of the suspension scenes (docs/suspensions.md, no ringing)
 GRAVITY = 980.0  # cm/s^2
 RHO_F = 1.0  # g/cm^3
 MU = 0.01  # g/(cm s): nu = 0.01 cm^2/s
@@ -85,6 +88,7 @@ class Scene:
     progress_every: int
     cells_per_diameter: float = 10.0
     contact_range: float = RANGE
+    lubrication: bool = True
 
 
 def nint(value: float) -> int:
@@ -229,15 +233,11 @@ def sediment504(cells_per_diameter: float) -> Scene:
         "the top shifted right by half a pitch; the block centred across the cavity, the top",
         f"row's surfaces 0.4 D (0.025 cm) below the lid, the lowest at y = {low:.4f} cm. The",
         "gap of 0.4 D between surfaces and to the walls is at least one spacing plus the",
-        "contact range from 7.49 spacings per D up (contact range 2), from 10 up (range 3).",
-        "It is looser than the published lattice, whose rows, columns and spacing were not",
-        "confirmed (docs/suspensions.md).",
+        "contact range of half a spacing from 3.75 spacings per D up. It is looser than the",
+        "published lattice, whose rows, columns and spacing were not confirmed",
+        "(docs/suspensions.md).",
         "Run length: one disk alone sinks at about 0.3-0.4 cm/s (Re about 2), the suspension",
-        "much slower; at 10 per D with contact range 3 the mean speed was 0.002 cm/s at 30 s",
-        "and the pile still settling, so the run goes to 40 s (docs/suspensions.md).",
-        "At 8 per D with contact range 2 a full run stopped at t = 0.82 s, a disk one spacing",
-        "from a wall; --cells-per-diameter 10 --range 3 ran to 30 s (docs/suspensions.md,",
-        "\"A stop at the walls\").",
+        "much slower; the bed comes to rest within 40 s (docs/suspensions.md).",
     ]
     return Scene("sediment504", header, width, height, disks, t_end=40.0,
                  series_interval=0.02, field_interval=0.5, progress_every=5000,
@@ -258,8 +258,8 @@ def sediment504_dense(cells_per_diameter: float) -> Scene:
         "18 rows of 28, centres 1.125 D = 0.0703 cm apart along a row and between rows, every",
         "second row from the top 0.0078 cm to the right, from y = 0.750 to 1.945 cm above 0.72 cm",
         "of clear fluid. D = 0.0625 cm, rho_p = 1.01 g/cm^3, rho_f = 1 g/cm^3, nu = 0.01 cm^2/s,",
-        "g = 980 cm/s^2. The surface gaps of 0.125 D (0.0078 cm) ask for 24 spacings per D with",
-        "a contact range of 2 spacings (the rule of sediment504).",
+        "g = 980 cm/s^2. The surface gaps of 0.125 D (0.0078 cm) ask for 12 spacings per D with",
+        "the contact range of half a spacing (the rule of sediment504).",
         "Run length: the reproduction ran 24 s; the fingers and the first disks at the bottom",
         "come in the first seconds (docs/suspensions.md).",
     ]
@@ -289,9 +289,6 @@ def bidisperse(cells_per_diameter: float) -> Scene:
         "cells_per_diameter counts the spacings across the smaller disk.",
         "Run length: alone, a small disk sinks at about 0.3-0.4 cm/s (Re about 2), a large one at",
         "0.4-0.8 cm/s (Re 5-10); 40 s, as sediment504 (docs/suspensions.md).",
-        "Shipped at 12.5 spacings per D with a contact range of 4 spacings: it then runs to",
-        "its end, the disks at rest by 35 s; with a range of 3 a large disk resting in a corner",
-        "stopped the run at 24 s (docs/suspensions.md, \"A stop at the walls\").",
     ]
     return Scene("bidisperse", header, width, height, disks, t_end=40.0,
                  series_interval=0.02, field_interval=1.0, progress_every=5000,
@@ -320,8 +317,7 @@ def sediment10k(cells_per_diameter: float) -> Scene:
         "  python3 tools/suspension_scene.py --kind sediment10k --out /tmp/sediment10k.nml",
         "Run length: 120 s, an estimate from the settling speeds of sediment504",
         "(docs/suspensions.md); resume from a checkpoint with a larger run.t_end if the bed is",
-        "not at rest by then. Not yet run to the end; before a full run see",
-        "docs/suspensions.md, \"A stop at the walls\".",
+        "not at rest by then.",
     ]
     return Scene("sediment10k", header, width, height, disks, t_end=120.0,
                  series_interval=0.25, field_interval=5.0, progress_every=10000,
@@ -377,6 +373,10 @@ def render(scene: Scene, command: str) -> str:
         "/",
         "&lbm",
         f"  tau = {number(TAU)}, cells_per_diameter = {scene.cells_per_diameter:g}",
+        f"  s_e = {number(S_E)}   ! a bulk viscosity that damps what sound the start still makes",
+        "/",
+        "&initial",
+        "  pressure = 'hydrostatic'   ! holds up the disks' excess weight: no ringing at the start",
         "/",
         "&particles",
         f"  count = {len(disks)}",
@@ -394,7 +394,8 @@ def render(scene: Scene, command: str) -> str:
         "  bounce_back = 'yu', momentum = 'galilean'",
         "/",
         "&collision",
-        f"  range = {number(scene.contact_range)}",
+        f"  range = {number(scene.contact_range)}, "
+        f"lubrication = {'.true.' if scene.lubrication else '.false.'}",
         "/",
     ]
     lines += [
@@ -429,6 +430,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="&collision range, the contact range in lattice spacings "
                              f"(default {RANGE:g}; the DKT scenes take 2); the gaps must be "
                              "at least 1 + XI spacings")
+    parser.add_argument("--no-lubrication", action="store_true",
+                        help="leave out the lubrication correction (&collision lubrication, "
+                             "E13), which the scenes take by default")
     parser.add_argument("--out", type=Path, metavar="PATH",
                         help="the scene file to write (default: standard output)")
     args = parser.parse_args(argv)
@@ -441,10 +445,13 @@ def main(argv: list[str] | None = None) -> int:
         command += f" --cells-per-diameter {args.cells_per_diameter:g}"
     if args.range != RANGE:
         command += f" --range {args.range:g}"
+    if args.no_lubrication:
+        command += " --no-lubrication"
     if args.out is not None:
         command += f" --out {args.out}"
     try:
-        scene = replace(BUILDERS[args.kind](args.cells_per_diameter), contact_range=args.range)
+        scene = replace(BUILDERS[args.kind](args.cells_per_diameter), contact_range=args.range,
+                        lubrication=not args.no_lubrication)
         text = render(scene, command)
     except ValueError as err:
         print(f"suspension_scene.py: error: {err}", file=sys.stderr)
