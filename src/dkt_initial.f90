@@ -12,7 +12,7 @@ module dkt_initial
   use dkt_text, only: itoa
   implicit none
   private
-  public :: initial_state, weight_above
+  public :: initial_state
 
 contains
 
@@ -28,19 +28,20 @@ contains
     type(lattice_t), intent(inout) :: f
     integer :: x, j, jg
     real(wp) :: kx, ky, u0, xc, yc, ux, uy, p, mean
-    real(wp), allocatable :: weight(:)
+    real(wp), allocatable :: rows(:), weight(:)
     allocate (weight(dom%nyl))
     weight = 0.0_wp
     if (cfg%initial%pressure_kind == PRESSURE_HYDROSTATIC) then
-      ! every row of the channel in ascending order, on every rank: the same bits on any split
+      ! every row of the channel, summed in ascending order on every rank: the same bits on any
+      ! split; the slab takes its own rows of them
+      allocate (rows(lp%ny))
       mean = 0.0_wp
       do jg = 1, lp%ny
-        mean = mean + weight_above(cfg, lp, real(jg, wp) - 0.5_wp)
+        rows(jg) = weight_above(cfg, lp, real(jg, wp) - 0.5_wp)
+        mean = mean + rows(jg)
       end do
       mean = mean/real(lp%ny, wp)
-      do j = 1, dom%nyl
-        weight(j) = weight_above(cfg, lp, real(dom%y0 + j, wp) - 0.5_wp) - mean
-      end do
+      weight = rows(dom%y0 + 1:dom%y0 + dom%nyl) - mean
     end if
     ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
     select case (cfg%initial%flow_kind)

@@ -105,8 +105,8 @@ contains
             ! E9: weight minus buoyancy, (rho_p - rho_f) pi r^2 g along -y
             gy = -(p%density_ratio(k) - 1.0_wp)*pi*p%r(k)**2*ps%gravity
             ! the hydrodynamic part: this step's force, or its mean with the last (E8)
-            ax = (ps%drive(1, k) + p%cx(k))/p%mass(k)
-            ay = (ps%drive(2, k) + p%cy(k) + gy)/p%mass(k)
+            ax = (ps%drive_x(k) + p%cx(k))/p%mass(k)
+            ay = (ps%drive_y(k) + p%cy(k) + gy)/p%mass(k)
             ! E13, implicit in the disk's own velocity: (M + h C) U_new = M U + h (F + C U_b)
             if (ps%lub%on .and. (sorted .or. .not. alone)) then
               if (sorted) then
@@ -120,7 +120,7 @@ contains
             p%y(k) = p%y(k) + p%v(k)*h + 0.5_wp*ay*h*h
             p%u(k) = p%u(k) + ax*h
             p%v(k) = p%v(k) + ay*h
-            p%omega(k) = p%omega(k) + ps%drive(3, k)/p%inertia(k)*h
+            p%omega(k) = p%omega(k) + ps%drive_torque(k)/p%inertia(k)*h
           case (MOTION_PRESCRIBED)
             p%x(k) = p%x(k) + p%u(k)*h
             p%y(k) = p%y(k) + p%v(k)*h

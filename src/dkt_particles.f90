@@ -62,9 +62,10 @@ module dkt_particles
     integer :: scheme = BB_YU
     logical :: galilean = .false.       !! E7 with (e - u_w) (Wen et al. 2014)
     !> E8 moves a free particle by the mean hydrodynamic force and torque of this step and the
-    !! last (coupling.average_force): drive(:, k) holds what moves disk k of p this step
+    !! last (coupling.average_force): drive_x(k), drive_y(k), drive_torque(k) hold what moves
+    !! disk k of p this step
     logical :: average_force = .false.
-    real(wp), allocatable :: drive(:, :)
+    real(wp), allocatable :: drive_x(:), drive_y(:), drive_torque(:)
     real(wp) :: gravity = 0             !! g, lattice units, along -y
     real(wp) :: stiffness = 1, stiffness_overlap = 1 !! eps_p, eps'_p, lattice units (E10)
     real(wp) :: range = 1               !! threshold xi (E10), lattice spacings
@@ -196,7 +197,6 @@ contains
     allocate (ps%sdn(0), ps%sup(0), ps%rdn(0), ps%rup(0))
     if (present(fluid_interior)) ps%fluid_interior = fluid_interior
     if (present(average_force)) ps%average_force = average_force
-    allocate (ps%drive(3, 0))
     if (ps%fluid_interior) then
       allocate (ps%inner(0))
       allocate (ps%rho_first(dom%nx), ps%rho_last(dom%nx), ps%rho_below(dom%nx), &
@@ -505,7 +505,9 @@ contains
       end do
     end do
     call swap(ps, dom, NENTRY, nd, nu, md, mu)
-    call fit_drive(ps%drive, ps%n)
+    call fit_real(ps%drive_x, ps%n)
+    call fit_real(ps%drive_y, ps%n)
+    call fit_real(ps%drive_torque, ps%n)
     b = 1
     c = 1
     do k = 1, ps%n
@@ -530,27 +532,19 @@ contains
       ! until now, which travels with the particle and is kept in checkpoints; zero before
       ! the first step)
       if (ps%average_force) then
-        ps%drive(:, k) = 0.5_wp*(s + [ps%p%fx(k), ps%p%fy(k), ps%p%torque(k)])
+        ps%drive_x(k) = 0.5_wp*(s(1) + ps%p%fx(k))
+        ps%drive_y(k) = 0.5_wp*(s(2) + ps%p%fy(k))
+        ps%drive_torque(k) = 0.5_wp*(s(3) + ps%p%torque(k))
       else
-        ps%drive(:, k) = s
+        ps%drive_x(k) = s(1)
+        ps%drive_y(k) = s(2)
+        ps%drive_torque(k) = s(3)
       end if
       ps%p%fx(k) = s(1)
       ps%p%fy(k) = s(2)
       ps%p%torque(k) = s(3)
     end do
   end subroutine particles_reduce_forces
-
-  !> Make drive at least n columns long (twice as long when it grows); its values are rewritten
-  !! before they are read in every step.
-  subroutine fit_drive(drive, n)
-    real(wp), allocatable, intent(inout) :: drive(:, :)
-    integer, intent(in) :: n
-    integer :: m
-    if (size(drive, 2) >= n) return
-    m = max(n, 2*size(drive, 2), 16)
-    deallocate (drive)
-    allocate (drive(3, m))
-  end subroutine fit_drive
 
   !> Send nd items of `unit` numbers (ps%sdn) to the slab below and nu (ps%sup) to the slab
   !! above; receive md from below into ps%rdn and mu from above into ps%rup (0 at a closed or
