@@ -19,8 +19,8 @@ literature set-up in its comment header:
 The lattice spacing is set by ``&lbm cells_per_diameter`` (the spacings across the smallest
 disk, 10 by default); the arrangement does not depend on it. The fluid starts with the pressure
 that holds up the disks' weight less buoyancy (``&initial pressure = 'hydrostatic'``), so that
-the closed box does not ring when they start to fall, and a bulk viscosity 63 times the
-shear viscosity (``&lbm s_e = 0.1``) damps what sound remains. The scenes take the lubrication
+the closed box does not ring when they start to fall, and a bulk viscosity ten times the
+shear viscosity (``&lbm s_e = 0.5``) damps what sound remains. The scenes take the lubrication
 correction (E13, ``&collision lubrication``; ``--no-lubrication`` leaves it out) and a contact
 range (``&collision range``) of half a spacing, or ``--range``, so that a bed packs as close as
 its disks allow (docs/suspensions.md). Every gap between two disk surfaces, and between a disk
@@ -47,7 +47,7 @@ from pathlib import Path
 KINDS = ("sediment504", "sediment504_dense", "bidisperse", "sediment10k")
 RANGE = 0.5  # &collision range, in lattice spacings, the default (docs/suspensions.md)
 TAU = 0.65  # the shipped particle scenes' relaxation time
-S_E = 0.1  # &lbm s_e: the bulk rate of the suspension scenes (docs/suspensions.md, no ringing)
+S_E = 0.5  # &lbm s_e: the bulk rate of the suspension scenes (docs/suspensions.md, no ringing)
 GRAVITY = 980.0  # cm/s^2
 RHO_F = 1.0  # g/cm^3
 MU = 0.01  # g/(cm s): nu = 0.01 cm^2/s
