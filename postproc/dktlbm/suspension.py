@@ -59,6 +59,21 @@ def read_suspension(path: Path) -> dict[str, np.ndarray | float] | None:
     return out
 
 
+def area_below(y: np.ndarray, r: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """The area (cm^2) of each disk (centre height y, radius r) below each height h: an array
+    (disks, heights), exact (circular segments)."""
+    t = np.clip((h[None, :] - y[:, None]) / r[:, None], -1.0, 1.0)
+    return r[:, None] ** 2 * (np.arcsin(t) + t * np.sqrt(1.0 - t * t) + 0.5 * np.pi)
+
+
+def contacts(x: np.ndarray, y: np.ndarray, r: np.ndarray, reach: float) -> np.ndarray:
+    """The contact number of each disk: how many other disks have a surface gap below
+    `reach` (cm) from it (walls not counted)."""
+    gap = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) - (r[:, None] + r[None, :])
+    np.fill_diagonal(gap, np.inf)
+    return (gap < reach).sum(axis=1)
+
+
 def from_particles(run: Run) -> dict[str, np.ndarray | float]:
     """The /suspension series computed from /particles as dktlbm computes them
     (src/dkt_suspension.f90), for a run file written before it stored them: all disks counted
@@ -72,12 +87,7 @@ def from_particles(run: Run) -> dict[str, np.ndarray | float]:
     small, large = r.min(), r.max()
     two = large > small and bool(np.all((r == small) | (r == large)))
     lines = np.arange(nb + 1) * bin_
-
-    def below(h: np.ndarray, c: np.ndarray) -> np.ndarray:
-        t = np.clip((h[None, :] - c[:, None]) / r[:, None], -1.0, 1.0)
-        return r[:, None] ** 2 * (np.arcsin(t) + t * np.sqrt(1.0 - t * t) + 0.5 * np.pi)
-
-    phi = np.stack([np.diff(below(lines, row), axis=1).sum(axis=0) for row in y])
+    phi = np.stack([np.diff(area_below(row, r, lines), axis=1).sum(axis=0) for row in y])
     return {
         "t": run.t,
         "v_mean": v.mean(axis=1),
@@ -164,6 +174,19 @@ def summary(run: Run, s: dict[str, np.ndarray | float]) -> list[str]:
     lines.append(f"at t = {t[last]:.4g} s: fastest disk {np.abs(v[last]).max():.4g} cm/s, "
                  f"smallest surface gap {gap.min():.4g} cm ({gap.min() / run.dx:.3g} spacings), "
                  f"highest disk top {top:.4f} cm, packed area fraction {packed:.3f}")
+    below = top - 2.0 * float(r.max())
+    if below > 0.0:
+        bulk = float(area_below(y[last], r, np.array([below])).sum()) / (run.width * below)
+        lines.append(f"at t = {t[last]:.4g} s: bulk area fraction {bulk:.3f} (below {below:.4f} cm,"
+                     " one largest diameter under the highest top)")
+    xi = run.settings.number("collision", "range")
+    if xi > 0.0:
+        z = contacts(x[last], y[last], r, xi * run.dx)
+        walls = ((x[last] - r < xi * run.dx) | (run.width - x[last] - r < xi * run.dx)
+                 | (y[last] - r < xi * run.dx))
+        inner = f", {z[~walls].mean():.2f} away from the walls" if (~walls).any() else ""
+        lines.append(f"at t = {t[last]:.4g} s: contacts per disk (surface gap below the contact "
+                     f"range, {xi:g} spacings) {z.mean():.2f}{inner}")
     return lines
 
 
