@@ -206,6 +206,8 @@ contains
       out%file_open = .true.
       ! the file was cut back: it describes a run going on from here, whatever follows
       call io_write_attribute(out%io, '/run', 'stop_reason', 'running')
+      ! a resumed run may be longer or shorter (run.t_end, run.steps): the file says which
+      call io_write_attribute(out%io, '/run', 'steps', sim%lp%steps)
       ! (a file of an earlier version has no identity: it gets one now)
       out%run_id = io_run_id(out%io)
       if (out%run_id == 0.0_wp) call new_run_id(out, sim)

@@ -72,7 +72,8 @@ def test_half_a_run_then_a_restart_equals_the_whole_run(
 ) -> None:
     """STEPS/2 steps on 2 ranks with a checkpoint at the end, then a restart from it on
     `ranks` ranks to STEPS: the output equals the uninterrupted run's, bit for bit (the first
-    half's final snapshot, which an uninterrupted run does not write, is removed)."""
+    half's final snapshot, which an uninterrupted run does not write, is removed), and the
+    file's /run `steps` is the resumed run's length, STEPS, not the first half's."""
     out = tmp_path / "run"
     half = STEPS // 2
     run("case0.nml", 2, [*SETS, f"run.steps={half}", f"run.checkpoint_every={half}"], out)
@@ -83,6 +84,8 @@ def test_half_a_run_then_a_restart_equals_the_whole_run(
     assert "DKT pattern" in proc.stdout
     assert (out / "case0.finished").exists()
     assert_same_output(uninterrupted, out)
+    with h5py.File(out / "case0.h5", "r") as h5:
+        assert int(h5["run"].attrs["steps"]) == STEPS
 
 
 # the 4-byte precisions, the /precision code of each, and the other one that stores alike
