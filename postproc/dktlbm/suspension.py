@@ -66,11 +66,17 @@ def area_below(y: np.ndarray, r: np.ndarray, h: np.ndarray) -> np.ndarray:
     return r[:, None] ** 2 * (np.arcsin(t) + t * np.sqrt(1.0 - t * t) + 0.5 * np.pi)
 
 
-def contacts(x: np.ndarray, y: np.ndarray, r: np.ndarray, reach: float) -> np.ndarray:
-    """The contact number of each disk: how many other disks have a surface gap below
-    `reach` (cm) from it (walls not counted)."""
+def surface_gaps(x: np.ndarray, y: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The gap (cm) between the surfaces of every two disks (negative: an overlap), an array
+    (disks, disks) with inf on its diagonal."""
     gap = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :]) - (r[:, None] + r[None, :])
     np.fill_diagonal(gap, np.inf)
+    return gap
+
+
+def contacts(gap: np.ndarray, reach: float) -> np.ndarray:
+    """The contact number of each disk: how many other disks have a surface gap (the array of
+    surface_gaps) below `reach` (cm) from it (walls not counted)."""
     return (gap < reach).sum(axis=1)
 
 
@@ -165,10 +171,7 @@ def summary(run: Run, s: dict[str, np.ndarray | float]) -> list[str]:
         lines.append(f"t = {t[k]:8.4g} s  front {float(s['front'][k]):.4f} cm  v_mean "
                      f"{float(s['v_mean'][k]):+.4f} cm/s  v_rms {float(s['v_rms'][k]):.4f} cm/s")
     last = -1
-    dx_ = x[last][:, None] - x[last][None, :]
-    dy_ = y[last][:, None] - y[last][None, :]
-    gap = np.hypot(dx_, dy_) - (r[:, None] + r[None, :])
-    np.fill_diagonal(gap, np.inf)
+    gap = surface_gaps(x[last], y[last], r)
     top = float((y[last] + r).max())
     packed = float((np.pi * r**2).sum()) / (run.width * top)
     lines.append(f"at t = {t[last]:.4g} s: fastest disk {np.abs(v[last]).max():.4g} cm/s, "
@@ -181,7 +184,7 @@ def summary(run: Run, s: dict[str, np.ndarray | float]) -> list[str]:
                      " one largest diameter under the highest top)")
     xi = run.settings.number("collision", "range")
     if xi > 0.0:
-        z = contacts(x[last], y[last], r, xi * run.dx)
+        z = contacts(gap, xi * run.dx)
         walls = ((x[last] - r < xi * run.dx) | (run.width - x[last] - r < xi * run.dx)
                  | (y[last] - r < xi * run.dx))
         inner = f", {z[~walls].mean():.2f} away from the walls" if (~walls).any() else ""

@@ -652,7 +652,7 @@ def test_bed_measures_of_dkt_suspension_on_arrangements_known_exactly() -> None:
     band of whole rows, and their contact numbers are 4 inside, 3 on an edge, 2 in a corner;
     in a hexagonal stack the inner disks have 6. A band cut through a row's middle counts half
     of that row's area. A gap just above the reach is not a contact."""
-    from dktlbm.suspension import area_below, contacts
+    from dktlbm.suspension import area_below, contacts, surface_gaps
 
     r, n, rows = 0.05, 6, 5
     gx, gy = np.meshgrid((2 * np.arange(n) + 1) * r, (2 * np.arange(rows) + 1) * r)
@@ -662,12 +662,12 @@ def test_bed_measures_of_dkt_suspension_on_arrangements_known_exactly() -> None:
     assert whole == pytest.approx(math.pi / 4, rel=1e-12)
     half = area_below(y, rr, np.array([r])).sum()
     assert half == pytest.approx(0.5 * n * math.pi * r * r, rel=1e-12)
-    z = contacts(x, y, rr, 1e-9).reshape(rows, n)
+    z = contacts(surface_gaps(x, y, rr), 1e-9).reshape(rows, n)
     assert z[1:-1, 1:-1].min() == z[1:-1, 1:-1].max() == 4
     assert z[0, 0] == z[-1, -1] == 2 and z[0, 2] == z[2, 0] == 3
-    apart = contacts(x * 1.001, y * 1.001, rr, 1e-5)  # gaps of 1e-4 r: above a 1e-5 reach
+    apart = contacts(surface_gaps(x * 1.001, y * 1.001, rr), 1e-5)  # gaps 1e-4 r > the reach
     assert apart.max() == 0
     hx = np.array([(2 * i + (j % 2)) * r for j in range(5) for i in range(6)])
     hy = np.array([j * math.sqrt(3) * r for j in range(5) for i in range(6)])
-    zh = contacts(hx, hy, np.full(30, r), 1e-9).reshape(5, 6)
+    zh = contacts(surface_gaps(hx, hy, np.full(30, r)), 1e-9).reshape(5, 6)
     assert (zh[1:-1, 1:-1] == 6).all()
