@@ -211,25 +211,25 @@ contains
     character(len=512) :: msg
     type(particle_t), allocatable :: all(:)
     integer :: k
-    call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
+    call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%ny, sim%dom%nyl, &
                          sim%dom%y0, chk, err)
     if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
     if (grown_to(sim, chk%ny)) then
       ! written after the window grew (docs/model.md §5): the lattice of that size, then its
       ! populations, which the read puts in place of those the growth moved
       call simulation_grow(sim, chk%ny)
-      call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%lp%ny, sim%dom%nyl, &
+      call checkpoint_read(path, sim%dom%comm, sim%f, sim%lp%nx, sim%dom%ny, sim%dom%nyl, &
                            sim%dom%y0, chk, err)
       if (len(err) > 0) call fatal_all('--restart '//path//': '//err)
     end if
-    if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%lp%ny .or. &
+    if (chk%nx /= sim%lp%nx .or. chk%ny /= sim%dom%ny .or. &
         abs(chk%dx - sim%lp%dx) > 1.0e-12_wp*sim%lp%dx .or. &
         abs(chk%dt - sim%lp%dt) > 1.0e-12_wp*sim%lp%dt .or. &
         chk%np /= merge(sim%parts%ntotal, 0, sim%particles_on)) then
       write (msg, '(a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a,i0,a,es12.5,a,es12.5,a,i0,a)') &
         ': the checkpoint holds a lattice of ', chk%nx, ' x ', chk%ny, ' cells, dx = ', chk%dx, &
         ' cm, dt = ', chk%dt, ' s with ', chk%np, ' particles; the scene '// &
-        'gives ', sim%lp%nx, ' x ', sim%lp%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
+        'gives ', sim%lp%nx, ' x ', sim%dom%ny, ', dx = ', sim%lp%dx, ', dt = ', sim%lp%dt, &
         ' with ', merge(sim%parts%ntotal, 0, sim%particles_on), '. Resume with the scene '// &
         'file and --set options of the run that wrote it'
       call fatal_all(trim(sim%cfg%file)//': --restart '//path//trim(msg))
@@ -338,7 +338,7 @@ contains
     chk%samples = output_samples(out)
     if (present(unscheduled)) chk%samples = output_samples(out) - unscheduled
     chk%nx = sim%lp%nx
-    chk%ny = sim%lp%ny
+    chk%ny = sim%dom%ny
     chk%dx = sim%lp%dx
     chk%dt = sim%lp%dt
     chk%run_id = output_run_id(out)

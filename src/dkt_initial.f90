@@ -34,13 +34,13 @@ contains
     if (cfg%initial%pressure_kind == PRESSURE_HYDROSTATIC) then
       ! every row of the channel, summed in ascending order on every rank: the same bits on any
       ! split; the slab takes its own rows of them
-      allocate (rows(lp%ny))
+      allocate (rows(dom%ny))
       mean = 0.0_wp
-      do jg = 1, lp%ny
+      do jg = 1, dom%ny
         rows(jg) = weight_above(cfg, lp, real(jg, wp) - 0.5_wp)
         mean = mean + rows(jg)
       end do
-      mean = mean/real(lp%ny, wp)
+      mean = mean/real(dom%ny, wp)
       weight = rows(dom%y0 + 1:dom%y0 + dom%nyl) - mean
     end if
     ! (lattice_allocate touched every entry, ghosts and padding included: no garbage is read)
@@ -48,7 +48,7 @@ contains
     case (FLOW_TAYLOR_GREEN)
       ! u = U(-cos kx sin ky, sin kx cos ky), p = -U^2/4 (cos 2kx + cos 2ky) (lattice units)
       kx = 2.0_wp*pi/real(lp%nx, wp)
-      ky = 2.0_wp*pi/real(lp%ny, wp)
+      ky = 2.0_wp*pi/real(dom%ny, wp)
       u0 = lp%u_init_lb
       do j = 1, dom%nyl
         jg = dom%y0 + j

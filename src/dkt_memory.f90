@@ -98,7 +98,7 @@ contains
     end if
     need = real(node_ranks, wp)*sum(bytes)
     if (limit < 0.0_wp .or. need <= limit) return
-    write (msg, '(a,i0,a,i0,a)') ' for ', lp%nx, ' x ', lp%ny, &
+    write (msg, '(a,i0,a,i0,a)') ' for ', lp%nx, ' x ', dom%ny, &
       ' cells, times '//counted(node_ranks, 'rank')//' on a node = '
     call fatal_all(trim(cfg%file)//': the run needs '//gib_text(sum(bytes)/GIB, up=.true.)// &
                    ' GiB per rank (lattices '//gib_text(bytes(1)/GIB)//' GiB, particle '// &

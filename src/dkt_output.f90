@@ -193,7 +193,7 @@ contains
     call run_lock_check(sim)
     if (out%resumed) then
       ! the output of the run that wrote the checkpoint continues, cut back to its step
-      call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, &
+      call io_reopen(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%dom%ny, &
                      sim%dom%y0, sim%dom%nyl, sim%lp%dx, sim%step, out%samples, &
                      [character(len=11) :: 'particles', 'diagnostics', 'suspension'], &
                      [sim%particles_on, sim%pair_on, suspension_on(sim)], &
@@ -223,7 +223,7 @@ contains
     ! that a file that appears meanwhile is not clobbered)
     call output_check_existing(out, sim)
     call run_lock_take(sim, out%lock_fd)
-    call io_open(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%lp%ny, sim%dom%y0, &
+    call io_open(out%io, dir, sim%cfg%name, sim%dom%comm, sim%lp%nx, sim%dom%ny, sim%dom%y0, &
                  sim%dom%nyl, sim%lp%dx, sim%cfg%output%overwrite, err)
     if (len(err) > 0) call fatal_all(trim(sim%cfg%file)//': output.dir = '''//dir//''': '//err)
     out%io%compress = sim%cfg%output%compress
@@ -249,7 +249,7 @@ contains
                       compiler_version(), dkt_build_flags, pnames, pvalues, &
                       [character(len=2) :: 'cm', 's', '1', '1', '1', '1', '1', '1', '1'])
     call io_write_attribute(out%io, '/run', 'nx', sim%lp%nx)
-    call io_write_attribute(out%io, '/run', 'ny', sim%lp%ny)
+    call io_write_attribute(out%io, '/run', 'ny', sim%dom%ny)
     ! the rows a growing window may reach (window.max_above), ny when it never grows
     call io_write_attribute(out%io, '/run', 'ny_max', sim%lp%ny_max)
     call io_write_attribute(out%io, '/run', 'steps', sim%lp%steps)
@@ -565,7 +565,7 @@ contains
     real(wp), allocatable :: phi(:)
     associate (c => sim%cfg%particles, lp => sim%lp)
       bin = lp%largest_diameter
-      height = lp%ny*lp%dx
+      height = sim%dom%ny*lp%dx
       y0 = 0.0_wp
       if (sim%window_on) y0 = window_offset(sim%win, lp%dx)
       allocate (phi(suspension_bins(height, bin)))
@@ -760,7 +760,7 @@ contains
     character(len=:), allocatable :: err
     integer(c_long) :: bytes
     logical :: ok
-    bytes = int(sim%lp%nx, c_long)*int(sim%lp%ny, c_long)*48_c_long + 262144_c_long
+    bytes = int(sim%lp%nx, c_long)*int(sim%dom%ny, c_long)*48_c_long + 262144_c_long
     err = ''
     if (sim%dom%rank == 0) err = space_problem(sim%cfg%output_dir, sim%cfg%name//'.space', bytes)
     ok = len(err) == 0

@@ -102,12 +102,12 @@ contains
                   lp%velocity_source//': lower it, or '//lp%dx_knob// &
                   ' or lower lbm.tau (both shrink dt)')
       end if
-      write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', lp%ny, ' = ', &
-        int(lp%nx, i8)*lp%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
+      write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'cells ', lp%nx, ' x ', dom%ny, ' = ', &
+        int(lp%nx, i8)*dom%ny, ', steps ', lp%steps, ', rows per rank ', dom%nyl, ' (rank 0)'
       call log_line(trim(line))
       mem = rank_memory(cfg, lp, dom%nxp, dom%nyl)/MIB
       grown = ''
-      if (lp%ny_max > lp%ny) then
+      if (lp%ny_max > dom%ny) then
         ! a window that may grow (window.max_above): what rank 0 holds at its largest, the
         ! figure the memory check (dkt_memory) took
         largest = dom
@@ -123,9 +123,9 @@ contains
       end if
       window = 'window: none'
       if (sim%window_on) then
-        write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', lp%ny*lp%dx, ' cm (', &
+        write (window, '(a,f8.3,a,f6.1,a,f6.1,a,f8.3,a)') 'window: ', dom%ny*lp%dx, ' cm (', &
           cfg%window%below, ' + ', cfg%window%above, ' D_1) from y = ', sim%win%y_origin, ' cm'
-        if (lp%ny_max > lp%ny) then
+        if (lp%ny_max > dom%ny) then
           write (window, '(a,a,f0.1,a)') trim(window), ', grows to at most ', &
             lp%ny_max*lp%dx/lp%largest_diameter - cfg%window%below, ' D_1 above'
           if (cfg%window%max_above < 0.0_wp) then
@@ -234,7 +234,7 @@ contains
     t = MPI_Wtime() - prog%t_start
     write (line, '(a,f9.2,a,i0,a,a,a,f9.3,a)') 'performance: ', &
       real(sim%updates, wp)/max(t, 1.0e-9_wp)/1.0e6_wp, ' MLUPS (', &
-      int(sim%lp%nx, i8)*sim%lp%ny, ' cells x ', &
+      int(sim%lp%nx, i8)*sim%dom%ny, ' cells x ', &
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
     call report_parts(sim, t)

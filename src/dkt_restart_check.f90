@@ -112,13 +112,13 @@ contains
     n = size(chk%particles, 2)
     if (.not. sim%particles_on .or. n == 0) return
     nx = real(sim%lp%nx, wp)
-    ny = real(sim%lp%ny, wp)
+    ny = real(sim%dom%ny, wp)
     do k = 1, n
       associate (v => chk%particles(:, k))
         if (v(1) < 0.0_wp .or. v(1) > nx .or. v(2) < 0.0_wp .or. v(2) > ny) then
           write (msg, '(a,i0,a,es12.5,a,es12.5,a,i0,a,i0,a)') '/particles holds particle ', k, &
             ' at (x, y) = (', v(1), ', ', v(2), ') lattice spacings, outside the lattice of ', &
-            sim%lp%nx, ' x ', sim%lp%ny
+            sim%lp%nx, ' x ', sim%dom%ny
           p = trim(msg)
           return
         end if

@@ -53,11 +53,11 @@ contains
     logical, intent(in) :: check
     !> the input layer's comparison of the input with the one stored in the checkpoint
     procedure(input_check_i) :: input_check
-    type(lattice_params_t) :: at
+    integer :: ny
     ! a resumed run starts on its checkpoint's lattice, which a window may have grown
-    at = lp
-    if (len(restart) > 0) at%ny = resume_rows(lp, cfg%window%enabled, restart, comm)
-    call simulation_setup(run%sim, cfg, at, comm, lattices=.not. check)
+    ny = lp%ny
+    if (len(restart) > 0) ny = resume_rows(lp, cfg%window%enabled, restart, comm)
+    call simulation_setup(run%sim, cfg, lp, comm, ny, lattices=.not. check)
     call output_check_dir(run%sim)
     if (len(restart) > 0 .and. .not. check) &
       call checkpoint_resume(run%chk, run%out, run%sim, restart, input_check)

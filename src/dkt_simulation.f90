@@ -51,12 +51,15 @@ contains
   !! set the initial state. Every rank calls it; a decomposition that cannot work stops all
   !! ranks with the largest rank count that does, a run that needs more memory than a node
   !! gives stops them before anything large is allocated. `lattices` = .false. (--check) sets
-  !! up everything the start-up report needs but allocates no lattice.
-  subroutine simulation_setup(sim, cfg, lp, comm, lattices)
+  !! up everything the start-up report needs but allocates no lattice. `ny` is the rows the run
+  !! starts on: lp%ny, or more for a run resumed on a window that grew (the domain keeps the
+  !! current count; lp stays as load computed it).
+  subroutine simulation_setup(sim, cfg, lp, comm, ny, lattices)
     type(simulation_t), intent(inout) :: sim
     type(config_t), intent(in) :: cfg
     type(lattice_params_t), intent(in) :: lp
     type(MPI_Comm), intent(in) :: comm
+    integer, intent(in) :: ny
     logical, intent(in), optional :: lattices
     logical :: with_lattices
     character(len=:), allocatable :: err
@@ -64,7 +67,6 @@ contains
     integer :: min_rows
     logical :: single, shifted, arith4, half
     type(domain_t) :: largest
-    type(lattice_params_t) :: lp_largest
 
     sim%cfg = cfg
     sim%lp = lp
@@ -79,16 +81,14 @@ contains
       min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4, &
                      particles_reach_rows(0.5_wp*lp%largest_diameter/lp%dx, cfg%collision%range))
     end if
-    call domain_init(sim%dom, comm, lp%nx, lp%ny, periodic_x, periodic_y, min_rows, err)
+    call domain_init(sim%dom, comm, lp%nx, ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
-    if (lp%ny_max > lp%ny) then
+    if (lp%ny_max > ny) then
       ! a window that may grow (docs/model.md §5) is refused now, not at a growth mid-run, when
       ! the node cannot hold its largest lattice
       largest = sim%dom
       call domain_resize(largest, lp%ny_max)
-      lp_largest = lp
-      lp_largest%ny = lp%ny_max
-      call check_memory(sim%cfg, lp_largest, largest)
+      call check_memory(sim%cfg, sim%lp, largest)
     else
       call check_memory(sim%cfg, sim%lp, sim%dom)
     end if
@@ -209,7 +209,7 @@ contains
     end if
     call swap_lattices(sim)
     sim%step = n
-    sim%updates = sim%updates + int(sim%lp%nx, i8)*int(sim%lp%ny, i8)
+    sim%updates = sim%updates + int(sim%lp%nx, i8)*int(sim%dom%ny, i8)
     if (sim%pair_on) then
       call timer_start(PART_PARTICLES)
       call pair_sample(sim, n)
@@ -421,7 +421,7 @@ contains
     character(len=160) :: where
     logical :: walls_x, wall_lo, wall_hi, open_lo, open_hi
     nx = real(sim%lp%nx, wp)
-    ny = real(sim%lp%ny, wp)
+    ny = real(sim%dom%ny, wp)
     walls_x = sim%cfg%domain%sides_kind == END_WALL
     wall_lo = sim%cfg%domain%lower_kind == END_WALL .and. .not. sim%window_on
     wall_hi = sim%cfg%domain%upper_kind == END_WALL .and. .not. sim%window_on
@@ -543,7 +543,7 @@ contains
     place_id = huge(0)
     fast_id = huge(0)
     if (sim%window_on) escaped = particles_first_above_own(sim%parts, sim%dom, &
-                                                           window_escape_line(sim%win, sim%lp%ny))
+                                                           window_escape_line(sim%win, sim%dom%ny))
     if (sim%particles_move) then
       call check_particle_places(sim, n, place_id, failure)
       call check_particle_speeds(sim, n, fast_id, sim%fast)
@@ -569,10 +569,10 @@ contains
       sim%pair_v = reshape(v(S_PAIR:S_PAIR + 5), [3, 2])
       if (v(S_FINITE) < 1.0_wp) sim%pair_v = ieee_value(1.0_wp, ieee_quiet_nan)
     end if
-    ny = sim%lp%ny
+    ny = sim%dom%ny
     escaped = nint(v(S_ESCAPE))
     if (sim%window_on .and. escaped /= huge(0)) call grow_window(sim, n, escaped)
-    if (sim%particles_move .and. sim%lp%ny /= ny) then
+    if (sim%particles_move .and. sim%dom%ny /= ny) then
       ! the places on the grown lattice (the window's growth is rare: a reduction of its own)
       call check_particle_places(sim, n, place_id, failure)
       call particles_agree(sim%parts, sim%dom, place_id, failure)
@@ -624,13 +624,13 @@ contains
     character(len=400) :: msg
     character(len=:), allocatable :: key, why
     real(wp) :: limit
-    do while (k > 0 .and. sim%lp%ny < sim%lp%ny_max)
-      call simulation_grow(sim, min(sim%lp%ny_max, sim%lp%ny + sim%lp%grow_rows))
-      write (msg, '(a,i0,a,f0.2,a,i0,a,i0,a)') 'window grown to ', sim%lp%ny, ' rows (above = ', &
+    do while (k > 0 .and. sim%dom%ny < sim%lp%ny_max)
+      call simulation_grow(sim, min(sim%lp%ny_max, sim%dom%ny + sim%lp%grow_rows))
+      write (msg, '(a,i0,a,f0.2,a,i0,a,i0,a)') 'window grown to ', sim%dom%ny, ' rows (above = ', &
         window_above(sim), ' D_1) at step ', n, ': particle ', k, &
         ' came within window.margin of its upper end'
       call log_line(trim(msg))
-      k = window_escaped(sim%win, sim%dom, sim%parts, sim%lp%ny)
+      k = window_escaped(sim%win, sim%dom, sim%parts, sim%dom%ny)
     end do
     if (k > 0) then
       ! a window of fixed length, or one grown to its limit: the key that would hold the pair
@@ -660,7 +660,7 @@ contains
   !! holds the lowest free centre: window.above, more once it has grown.
   pure real(wp) function window_above(sim) result(above)
     type(simulation_t), intent(in) :: sim
-    above = real(sim%lp%ny, wp)*sim%lp%dx/sim%lp%largest_diameter - sim%cfg%window%below
+    above = real(sim%dom%ny, wp)*sim%lp%dx/sim%lp%largest_diameter - sim%cfg%window%below
   end function window_above
 
   !> The window grows to ny rows at its upper end (docs/model.md §5, window.max_above): the
@@ -697,7 +697,6 @@ contains
     end if
     sim%f_next = grown
     call sweep_init(sim%ws, sim%dom%nxp)
-    sim%lp%ny = ny
     if (sim%particles_on) call particles_resize_rows(sim%parts, old, sim%dom)
   end subroutine simulation_grow
 
