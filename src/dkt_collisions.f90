@@ -8,12 +8,71 @@ module dkt_collisions
   use dkt_cells, only: sort_ascending
   implicit none
   private
-  public :: collision_forces, collision_force_on, collision_partners, repel
+  public :: collision_forces, collision_force_on, collision_partners, repel, &
+            collision_stable_substeps
 
   !> The largest |coordinate| of a centre that collision_partners may leave out of a list.
   real(wp), parameter :: FAR = 1.0e100_wp
 
 contains
+
+  !> The fewest particle sub-steps per fluid step for which the explicit update (E8) of the
+  !! stiffest contact (E10–E11) stays stable: omega h <= 1, with omega^2 = k / m for the
+  !! spring constant k of the overlap or range law at contact and the reduced mass m, over the
+  !! disks of radii r, masses mass, free or not. Disks of one kind (radius, mass, free or not)
+  !! give the same springs, so the pairs are taken between kinds: linear in the disks for a
+  !! scene of a few kinds, and the same value as over all pairs. huge(n) stands for a count too
+  !! large for an integer.
+  pure integer function collision_stable_substeps(r, mass, free, eps, eps_overlap, range) result(n)
+    real(wp), intent(in) :: r(:), mass(:)
+    logical, intent(in) :: free(:)
+    real(wp), intent(in) :: eps, eps_overlap !! eps_p and eps'_p of E10
+    real(wp), intent(in) :: range            !! threshold xi of E10
+    real(wp) :: omega, k, m
+    integer :: a, b, i, j, nk
+    integer, allocatable :: first(:), members(:) !! a disk of each kind, how many there are
+    allocate (first(size(r)), members(size(r)))
+    nk = 0
+    do a = 1, size(r)
+      do j = 1, nk
+        b = first(j)
+        if (r(b) == r(a) .and. mass(b) == mass(a) .and. (free(b) .eqv. free(a))) exit
+      end do
+      if (j > nk) then
+        nk = j
+        first(j) = a
+        members(j) = 0
+      end if
+      members(j) = members(j) + 1
+    end do
+    omega = 0.0_wp
+    do i = 1, nk
+      a = first(i)
+      if (.not. free(a)) cycle
+      ! the wall: the mirror disk at d = 2 r, stiffness halved (E11)
+      k = spring(2.0_wp*r(a), 0.5_wp*eps, 0.5_wp*eps_overlap)
+      omega = max(omega, sqrt(k/mass(a)))
+      do j = 1, nk
+        if (j == i .and. members(i) < 2) cycle ! no other disk of this kind
+        b = first(j)
+        k = spring(r(a) + r(b), eps, eps_overlap)
+        m = mass(a)
+        if (free(b)) m = m*mass(b)/(m + mass(b))
+        omega = max(omega, sqrt(k/m))
+      end do
+    end do
+    if (omega >= real(huge(n), wp)) then
+      n = huge(n)
+    else
+      n = max(1, ceiling(omega))
+    end if
+  contains
+    !> dF/dgap of E10 at contact: d/eps' in the overlap, up to 2 d xi/eps in the range
+    pure real(wp) function spring(d, eps_d, eps_overlap_d)
+      real(wp), intent(in) :: d, eps_d, eps_overlap_d
+      spring = max(d/eps_overlap_d, 2.0_wp*d*range/eps_d)
+    end function spring
+  end function collision_stable_substeps
 
   !> E10 between every pair and E11 against the mirror images across the side walls x = 0 and
   !! x = width, and across each end y = 0, y = height that is a wall (an end at rest).

@@ -25,6 +25,7 @@ module dkt_particles
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_domain, only: domain_t, domain_rows_for
   use dkt_cells, only: cells_t
+  use dkt_collisions, only: collision_stable_substeps
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_lubrication, only: lubrication_t
@@ -191,7 +192,8 @@ contains
     ps%partner_range = range
     if (ps%lub%on) ps%partner_range = max(range, ps%lub%cutoff)
     ps%marg = particles_reach(ps%rmax, ps%partner_range)
-    ps%substeps_needed = stable_substeps(ps, all)
+    ps%substeps_needed = collision_stable_substeps(all%r, all%mass, all%motion == MOTION_FREE, &
+                                                   stiffness, stiffness_overlap, range)
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0), ps%lrow(0))
     allocate (ps%rk(0), ps%rj(0), ps%rows(3, 0))
     allocate (ps%sdn(0), ps%sup(0), ps%rdn(0), ps%rup(0))
@@ -222,68 +224,12 @@ contains
     rows = floor(rmax + particles_reach(rmax, range)) + 1
   end function particles_reach_rows
 
-  !> The particle sub-steps per fluid step that the stiffest contact needs (stable_substeps),
-  !! found over every particle of the scene at the start.
+  !> The particle sub-steps per fluid step that the stiffest contact needs, found over every
+  !! particle of the scene at the start (dkt_collisions' collision_stable_substeps).
   pure integer function particles_stable_substeps(ps) result(n)
     type(particles_t), intent(in) :: ps
     n = ps%substeps_needed
   end function particles_stable_substeps
-
-  !> The fewest particle sub-steps per fluid step for which the explicit update (E8) of the
-  !! stiffest contact (E10–E11) stays stable: omega h <= 1, with omega^2 = k / m for the
-  !! spring constant k of the overlap or range law at contact and the reduced mass m.
-  !! Particles of one kind (radius, mass, free or not) give the same springs, so the pairs are
-  !! taken between kinds: linear in the particles for a scene of a few kinds, and the same
-  !! value as over all pairs. huge(n) stands for a count too large for an integer.
-  pure integer function stable_substeps(ps, all) result(n)
-    type(particles_t), intent(in) :: ps
-    type(particle_t), intent(in) :: all(:)
-    real(wp) :: omega, k, m
-    integer :: a, b, i, j, nk
-    integer, allocatable :: first(:), members(:) !! a particle of each kind, how many there are
-    allocate (first(size(all)), members(size(all)))
-    nk = 0
-    do a = 1, size(all)
-      do j = 1, nk
-        b = first(j)
-        if (all(b)%r == all(a)%r .and. all(b)%mass == all(a)%mass .and. &
-            ((all(b)%motion == MOTION_FREE) .eqv. (all(a)%motion == MOTION_FREE))) exit
-      end do
-      if (j > nk) then
-        nk = j
-        first(j) = a
-        members(j) = 0
-      end if
-      members(j) = members(j) + 1
-    end do
-    omega = 0.0_wp
-    do i = 1, nk
-      a = first(i)
-      if (all(a)%motion /= MOTION_FREE) cycle
-      ! the wall: the mirror particle at d = 2 r, stiffness halved (E11)
-      k = spring(2.0_wp*all(a)%r, 0.5_wp*ps%stiffness, 0.5_wp*ps%stiffness_overlap)
-      omega = max(omega, sqrt(k/all(a)%mass))
-      do j = 1, nk
-        if (j == i .and. members(i) < 2) cycle ! no other particle of this kind
-        b = first(j)
-        k = spring(all(a)%r + all(b)%r, ps%stiffness, ps%stiffness_overlap)
-        m = all(a)%mass
-        if (all(b)%motion == MOTION_FREE) m = m*all(b)%mass/(m + all(b)%mass)
-        omega = max(omega, sqrt(k/m))
-      end do
-    end do
-    if (omega >= real(huge(n), wp)) then
-      n = huge(n)
-    else
-      n = max(1, ceiling(omega))
-    end if
-  contains
-    !> dF/dgap of E10 at contact: d/eps' in the overlap, up to 2 d xi/eps in the range
-    pure real(wp) function spring(d, eps, eps_overlap)
-      real(wp), intent(in) :: d, eps, eps_overlap
-      spring = max(d/eps_overlap, 2.0_wp*d*ps%range/eps)
-    end function spring
-  end function stable_substeps
 
   !> The rank that owns a particle: the one whose rows hold its centre (node row j covers
   !! y in [j - 1, j)); a centre that is not finite stays with `keep`. Every rank computes the
