@@ -17,11 +17,7 @@
 !> loop over them (links, contacts, refills) takes them in the order one rank would.
 module dkt_particles
   use ieee_arithmetic, only: ieee_is_finite
-  use mpi_f08, only: MPI_Isend, MPI_Probe, MPI_Get_count, MPI_Recv, MPI_Waitall, MPI_Request, &
-                     MPI_Status, MPI_Allgather, MPI_Allgatherv, MPI_Allreduce, MPI_Bcast, &
-                     MPI_STATUS_IGNORE, MPI_STATUSES_IGNORE, MPI_INTEGER, MPI_CHARACTER, &
-                     MPI_MIN, MPI_SUM, MPI_IN_PLACE, MPI_PROC_NULL
-  use dkt_kinds, only: wp, mpi_wp, pi, i8
+  use dkt_kinds, only: wp, pi, i8
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
   use dkt_domain, only: domain_t, domain_rows_for
   use dkt_cells, only: cells_t
@@ -32,6 +28,9 @@ module dkt_particles
   use dkt_particle_state, only: particle_t, particle_state_t, NPACK, state_fit, state_put, &
                                 state_copy, state_copy_first, state_pack, state_unpack, &
                                 record_unpack, fit_int, fit_real
+  use dkt_particle_comm, only: particle_comm_t, comm_init, comm_start, comm_put, comm_swap, &
+                               comm_item, comm_id, comm_min, comm_min_int, comm_agree, &
+                               comm_allgather, comm_messages, comm_bytes, SLAB_BELOW, SLAB_ABOVE
   implicit none
   private
   public :: particles_t, particle_t, inner_link_t, particles_init, particles_stable_substeps, &
@@ -43,8 +42,6 @@ module dkt_particles
 
   !> per row-sum entry: particle id, global row, force x, y, torque
   integer, parameter :: NENTRY = 5
-  integer, parameter :: TAG_DOWN = 42, TAG_UP = 43
-  integer, parameter :: WP_BYTES = storage_size(1.0_wp)/8 !! bytes of a number in a message
 
   !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
   !! is a lattice node outside k.
@@ -108,17 +105,16 @@ module dkt_particles
     type(inner_link_t), allocatable :: inner(:)
     real(wp), allocatable :: rho_first(:), rho_last(:)  !! density of rows 1, nyl (columns 1..nx)
     real(wp), allocatable :: rho_below(:), rho_above(:) !! the same of halo rows 0, nyl+1
-    ! the state before the move (refill), and the buffers of the messages, grown as needed
+    ! the state before the move (refill), and the merge of the exchange, grown as needed
     integer :: nold = 0
-    type(particle_state_t) :: old, merged
-    real(wp), allocatable :: sdn(:), sup(:), rdn(:), rup(:)
-    integer, allocatable :: mhome(:)
-    !> MPI calls the particle messages made: to neighbours, and collectives
-    integer(i8) :: neighbour_calls = 0, collective_calls = 0
-    !> the work they stand for (the `work per step` line, the cost model of docs/performance.md):
-    !! bytes sent to neighbours, link searches and the links they found, interior resets and
-    !! the nodes they set
-    integer(i8) :: neighbour_bytes = 0, searches = 0, links_found = 0
+    type(particle_state_t) :: old
+    type(particle_state_t), private :: merged
+    integer, allocatable, private :: mhome(:)
+    !> the messages between neighbouring slabs and the particles' collectives
+    type(particle_comm_t), private :: comm
+    !> the link work (the `work per step` line, the cost model of docs/performance.md): link
+    !! searches and the links they found, interior resets and the nodes they set
+    integer(i8) :: searches = 0, links_found = 0
     integer(i8) :: resets = 0, nodes_reset = 0
     ! the nodes inside each disk, a run of columns per row (dkt_link_search's place_for_nodes):
     ! disk k of the last placement covers columns span(1, m, k)..span(2, m, k) of local row
@@ -196,7 +192,7 @@ contains
                                                    stiffness, stiffness_overlap, range)
     allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0), ps%lrow(0))
     allocate (ps%rk(0), ps%rj(0), ps%rows(3, 0))
-    allocate (ps%sdn(0), ps%sup(0), ps%rdn(0), ps%rup(0))
+    call comm_init(ps%comm, dom)
     if (present(fluid_interior)) ps%fluid_interior = fluid_interior
     if (present(average_force)) ps%average_force = average_force
     if (ps%fluid_interior) then
@@ -301,28 +297,25 @@ contains
   subroutine particles_exchange(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer :: k, nd, nu, md, mu, a, b, c, n, pick
-    real(wp) :: lo, hi
+    integer :: k, md, mu, a, b, c, n, pick
+    real(wp) :: lo, hi, v(NPACK)
     lo = real(dom%y0, wp)
     hi = real(dom%y0 + dom%nyl, wp)
     ! the own particles within reach of the slab below, of the slab above
-    nd = 0
-    nu = 0
+    call comm_start(ps%comm, NPACK)
     do k = 1, ps%n
       if (ps%home(k) /= dom%rank) cycle
       if (.not. ieee_is_finite(ps%p%y(k))) cycle
       if (dom%below >= 0 .and. ps%p%y(k) - (ps%p%r(k) + ps%marg) < lo) then
-        call fit_real(ps%sdn, NPACK*(nd + 1))
-        call state_pack(ps%p, k, ps%sdn(NPACK*nd + 1:NPACK*(nd + 1)))
-        nd = nd + 1
+        call state_pack(ps%p, k, v)
+        call comm_put(ps%comm, SLAB_BELOW, v)
       end if
       if (dom%above >= 0 .and. ps%p%y(k) + (ps%p%r(k) + ps%marg) > hi) then
-        call fit_real(ps%sup, NPACK*(nu + 1))
-        call state_pack(ps%p, k, ps%sup(NPACK*nu + 1:NPACK*(nu + 1)))
-        nu = nu + 1
+        call state_pack(ps%p, k, v)
+        call comm_put(ps%comm, SLAB_ABOVE, v)
       end if
     end do
-    call swap(ps, dom, NPACK, nd, nu, md, mu)
+    call comm_swap(ps%comm, md, mu)
     ! nothing came and every particle held is an own one that stays (one rank, or a slab without
     ! ghosts): the merge below would copy them all in their order, so only their owners change
     if (md == 0 .and. mu == 0) then
@@ -355,14 +348,14 @@ contains
       if (b <= md) then
         if (pick == 0) then
           pick = 2
-        else if (nint(ps%rdn(NPACK*(b - 1) + 1)) < ps%p%id(a)) then
+        else if (comm_id(ps%comm, SLAB_BELOW, b) < ps%p%id(a)) then
           pick = 2
         end if
       end if
       if (c <= mu) then
         if (pick == 0) then
           pick = 3
-        else if (nint(ps%rup(NPACK*(c - 1) + 1)) < id_of(pick)) then
+        else if (comm_id(ps%comm, SLAB_ABOVE, c) < id_of(pick)) then
           pick = 3
         end if
       end if
@@ -374,11 +367,11 @@ contains
         ps%mhome(n) = new_owner(ps%p%y(a), dom%rank)
         a = a + 1
       case (2)
-        call state_unpack(ps%rdn(NPACK*(b - 1) + 1:NPACK*b), ps%merged, n)
+        call state_unpack(comm_item(ps%comm, SLAB_BELOW, b), ps%merged, n)
         ps%mhome(n) = new_owner(ps%merged%y(n), dom%below)
         b = b + 1
       case default
-        call state_unpack(ps%rup(NPACK*(c - 1) + 1:NPACK*c), ps%merged, n)
+        call state_unpack(comm_item(ps%comm, SLAB_ABOVE, c), ps%merged, n)
         ps%mhome(n) = new_owner(ps%merged%y(n), dom%above)
         c = c + 1
       end select
@@ -400,7 +393,7 @@ contains
       if (which == 1) then
         id_of = ps%p%id(a)
       else
-        id_of = nint(ps%rdn(NPACK*(b - 1) + 1))
+        id_of = comm_id(ps%comm, SLAB_BELOW, b)
       end if
     end function id_of
     !> The owner after the move of a particle owned by `was`: the slab that holds its centre
@@ -425,10 +418,9 @@ contains
   subroutine particles_reduce_forces(ps, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    integer :: k, e, nd, nu, md, mu, b, c, id
-    real(wp) :: s(3)
-    nd = 0
-    nu = 0
+    integer :: k, e, md, mu, b, c, id
+    real(wp) :: s(3), entry(NENTRY)
+    call comm_start(ps%comm, NENTRY)
     do k = 1, ps%n
       if (ps%home(k) == dom%rank) cycle
       if (ps%rfirst(k) > ps%rlast(k)) cycle
@@ -437,20 +429,15 @@ contains
                             ' held by rank '//itoa(dom%rank)//' is owned by rank '// &
                             itoa(ps%home(k))//', not a neighbour')
       do e = ps%rfirst(k), ps%rlast(k)
+        entry = [real(ps%p%id(k), wp), real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
         if (ps%home(k) == dom%below) then
-          call fit_real(ps%sdn, NENTRY*(nd + 1))
-          ps%sdn(NENTRY*nd + 1:NENTRY*(nd + 1)) = [real(ps%p%id(k), wp), &
-                                                   real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
-          nd = nd + 1
+          call comm_put(ps%comm, SLAB_BELOW, entry)
         else
-          call fit_real(ps%sup, NENTRY*(nu + 1))
-          ps%sup(NENTRY*nu + 1:NENTRY*(nu + 1)) = [real(ps%p%id(k), wp), &
-                                                   real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
-          nu = nu + 1
+          call comm_put(ps%comm, SLAB_ABOVE, entry)
         end if
       end do
     end do
-    call swap(ps, dom, NENTRY, nd, nu, md, mu)
+    call comm_swap(ps%comm, md, mu)
     call fit_real(ps%drive_x, ps%n)
     call fit_real(ps%drive_y, ps%n)
     call fit_real(ps%drive_torque, ps%n)
@@ -462,16 +449,22 @@ contains
       s = 0.0_wp
       ! the rows below this slab (ascending, as the slab below sends them), then its own
       do while (b <= md)
-        if (nint(ps%rdn(NENTRY*(b - 1) + 1)) > id) exit
-        if (nint(ps%rdn(NENTRY*(b - 1) + 1)) == id) s = s + ps%rdn(NENTRY*(b - 1) + 3:NENTRY*b)
+        if (comm_id(ps%comm, SLAB_BELOW, b) > id) exit
+        if (comm_id(ps%comm, SLAB_BELOW, b) == id) then
+          entry = comm_item(ps%comm, SLAB_BELOW, b)
+          s = s + entry(3:5)
+        end if
         b = b + 1
       end do
       do e = ps%rfirst(k), ps%rlast(k)
         s = s + ps%rows(:, e)
       end do
       do while (c <= mu)
-        if (nint(ps%rup(NENTRY*(c - 1) + 1)) > id) exit
-        if (nint(ps%rup(NENTRY*(c - 1) + 1)) == id) s = s + ps%rup(NENTRY*(c - 1) + 3:NENTRY*c)
+        if (comm_id(ps%comm, SLAB_ABOVE, c) > id) exit
+        if (comm_id(ps%comm, SLAB_ABOVE, c) == id) then
+          entry = comm_item(ps%comm, SLAB_ABOVE, c)
+          s = s + entry(3:5)
+        end if
         c = c + 1
       end do
       ! E8's drive: the step's force, or its mean with the last step's (the record's force
@@ -492,45 +485,6 @@ contains
     end do
   end subroutine particles_reduce_forces
 
-  !> Send nd items of `unit` numbers (ps%sdn) to the slab below and nu (ps%sup) to the slab
-  !! above; receive md from below into ps%rdn and mu from above into ps%rup (0 at a closed or
-  !! open end). One message each way: the receiver learns its length from the message
-  !! (MPI_Probe), so no count travels first.
-  subroutine swap(ps, dom, unit, nd, nu, md, mu)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: unit, nd, nu
-    integer, intent(out) :: md, mu
-    type(MPI_Request) :: req(2)
-    type(MPI_Status) :: st
-    integer :: n
-    ! the messages, one each way (counted at an end too, where none travels: the count per step
-    ! is the scheme's, on any number of ranks), and the bytes that travel
-    ps%neighbour_calls = ps%neighbour_calls + 2
-    if (dom%below /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nd*WP_BYTES
-    if (dom%above /= MPI_PROC_NULL) ps%neighbour_bytes = ps%neighbour_bytes + unit*nu*WP_BYTES
-    ! a slab with no neighbour either way (one rank, closed or open ends): nothing to send
-    if (dom%below == MPI_PROC_NULL .and. dom%above == MPI_PROC_NULL) then
-      md = 0
-      mu = 0
-      return
-    end if
-    call MPI_Isend(ps%sdn, unit*nd, mpi_wp, dom%below, TAG_DOWN, dom%comm, req(1))
-    call MPI_Isend(ps%sup, unit*nu, mpi_wp, dom%above, TAG_UP, dom%comm, req(2))
-    ! from above what it sent down, from below what it sent up
-    call MPI_Probe(dom%above, TAG_DOWN, dom%comm, st)
-    call MPI_Get_count(st, mpi_wp, n)
-    mu = n/unit
-    call fit_real(ps%rup, n)
-    call MPI_Recv(ps%rup, n, mpi_wp, dom%above, TAG_DOWN, dom%comm, MPI_STATUS_IGNORE)
-    call MPI_Probe(dom%below, TAG_UP, dom%comm, st)
-    call MPI_Get_count(st, mpi_wp, n)
-    md = n/unit
-    call fit_real(ps%rdn, n)
-    call MPI_Recv(ps%rdn, n, mpi_wp, dom%below, TAG_UP, dom%comm, MPI_STATUS_IGNORE)
-    call MPI_Waitall(2, req, MPI_STATUSES_IGNORE)
-  end subroutine swap
-
   !> Every particle of the scene, ascending id, on every rank: from their owners (output,
   !! checkpoints, a window that grows; not in the time loop's steps).
   subroutine particles_gather(ps, dom, all)
@@ -538,7 +492,7 @@ contains
     type(domain_t), intent(in) :: dom
     type(particle_t), allocatable, intent(out) :: all(:)
     real(wp), allocatable :: mine(:), every(:)
-    integer :: counts(dom%nranks), displs(dom%nranks), k, m, r
+    integer :: k, m
     m = count(ps%home(1:ps%n) == dom%rank)
     allocate (mine(NPACK*m))
     m = 0
@@ -547,13 +501,7 @@ contains
       call state_pack(ps%p, k, mine(NPACK*m + 1:NPACK*(m + 1)))
       m = m + 1
     end do
-    call MPI_Allgather(NPACK*m, 1, MPI_INTEGER, counts, 1, MPI_INTEGER, dom%comm)
-    displs(1) = 0
-    do r = 2, dom%nranks
-      displs(r) = displs(r - 1) + counts(r - 1)
-    end do
-    allocate (every(sum(counts)))
-    call MPI_Allgatherv(mine, NPACK*m, mpi_wp, every, counts, displs, mpi_wp, dom%comm)
+    call comm_allgather(ps%comm, mine, every)
     if (size(every) /= NPACK*ps%ntotal) &
       call internal_error('particles_gather: '//itoa(size(every)/NPACK)//' particles owned, '// &
                           'of '//itoa(ps%ntotal))
@@ -575,49 +523,22 @@ contains
     call particles_distribute(ps, dom, all)
   end subroutine particles_resize_rows
 
-  !> Agree on a failure found by some ranks: the one with the lowest key (a particle's id;
-  !! huge(0) for none) sends its message to every rank. `msg` is then the same everywhere.
-  !! `lowest`, when given, is the lowest key over the ranks, already reduced (particles_min).
-  subroutine particles_agree(ps, dom, key, msg, lowest)
+  !> Agree on a failure found by some ranks (a particle's id as the key, huge(0) for none;
+  !! dkt_particle_comm's comm_agree): `msg` is then the same everywhere.
+  subroutine particles_agree(ps, key, msg, lowest)
     type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
     integer, intent(in) :: key
     character(len=:), allocatable, intent(inout) :: msg
     integer, intent(in), optional :: lowest
-    integer :: pair(2), least(2), n
-    pair = [key, dom%rank]
-    ! the lowest key, and of the ranks that have it the lowest
-    if (present(lowest)) then
-      least(1) = lowest
-    else
-      call MPI_Allreduce(pair(1), least(1), 1, MPI_INTEGER, MPI_MIN, dom%comm)
-      ps%collective_calls = ps%collective_calls + 1
-    end if
-    if (least(1) == huge(0)) then
-      msg = ''
-      return
-    end if
-    if (key /= least(1)) pair(2) = huge(0)
-    call MPI_Allreduce(pair(2), least(2), 1, MPI_INTEGER, MPI_MIN, dom%comm)
-    n = 0
-    if (dom%rank == least(2)) n = len(msg)
-    call MPI_Bcast(n, 1, MPI_INTEGER, least(2), dom%comm)
-    if (dom%rank /= least(2)) then
-      deallocate (msg)
-      allocate (character(len=n) :: msg)
-    end if
-    call MPI_Bcast(msg, n, MPI_CHARACTER, least(2), dom%comm)
-    ps%collective_calls = ps%collective_calls + 3
+    call comm_agree(ps%comm, key, msg, lowest)
   end subroutine particles_agree
 
   !> The element-wise minimum of v over the ranks, in place: the one reduction a step makes for
   !! what every rank must know of the slabs' own particles (dkt_simulation, survey_step).
-  subroutine particles_min(ps, dom, v)
+  subroutine particles_min(ps, v)
     type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
     real(wp), intent(inout) :: v(:)
-    call MPI_Allreduce(MPI_IN_PLACE, v, size(v), mpi_wp, MPI_MIN, dom%comm)
-    ps%collective_calls = ps%collective_calls + 1
+    call comm_min(ps%comm, v)
   end subroutine particles_min
 
   !> The lowest centre of a free particle (huge if none), on every rank; `finite` is false when
@@ -638,8 +559,7 @@ contains
         v(1) = min(v(1), ps%p%y(k))
       end if
     end do
-    call MPI_Allreduce(MPI_IN_PLACE, v, 2, mpi_wp, MPI_MIN, dom%comm)
-    ps%collective_calls = ps%collective_calls + 1
+    call comm_min(ps%comm, v)
     lowest = v(1)
     finite = v(2) > 0.0_wp
   end subroutine particles_lowest_free
@@ -649,9 +569,7 @@ contains
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: top
-    call MPI_Allreduce(particles_first_above_own(ps, dom, top), id, 1, MPI_INTEGER, MPI_MIN, &
-                       dom%comm)
-    ps%collective_calls = ps%collective_calls + 1
+    id = comm_min_int(ps%comm, particles_first_above_own(ps, dom, top))
     if (id == huge(0)) id = 0
   end function particles_first_above
 
@@ -672,7 +590,7 @@ contains
   pure function particles_messages(ps) result(calls)
     type(particles_t), intent(in) :: ps
     integer(i8) :: calls(2)
-    calls = [ps%neighbour_calls, ps%collective_calls]
+    calls = comm_messages(ps%comm)
   end function particles_messages
 
   !> This rank's particle work per step so far: the bytes sent to neighbours per step (over
@@ -682,7 +600,7 @@ contains
     type(particles_t), intent(in) :: ps
     integer, intent(in) :: steps
     real(wp) :: work(4)
-    work = [real(ps%neighbour_bytes, wp)/max(steps, 1), &
+    work = [real(comm_bytes(ps%comm), wp)/max(steps, 1), &
             real(ps%links_found, wp)/max(ps%searches, 1_i8), &
             real(ps%nodes_reset, wp)/max(ps%resets, 1_i8), real(ps%n, wp)]
   end function particles_work

@@ -564,7 +564,7 @@ contains
         end associate
       end do
     end if
-    call particles_min(sim%parts, sim%dom, v)
+    call particles_min(sim%parts, v)
     if (sim%pair_on) then
       sim%pair_v = reshape(v(S_PAIR:S_PAIR + 5), [3, 2])
       if (v(S_FINITE) < 1.0_wp) sim%pair_v = ieee_value(1.0_wp, ieee_quiet_nan)
@@ -575,13 +575,13 @@ contains
     if (sim%particles_move .and. sim%dom%ny /= ny) then
       ! the places on the grown lattice (the window's growth is rare: a reduction of its own)
       call check_particle_places(sim, n, place_id, failure)
-      call particles_agree(sim%parts, sim%dom, place_id, failure)
+      call particles_agree(sim%parts, place_id, failure)
     else if (sim%particles_move) then
-      call particles_agree(sim%parts, sim%dom, place_id, failure, lowest=nint(v(S_PLACE)))
+      call particles_agree(sim%parts, place_id, failure, lowest=nint(v(S_PLACE)))
     end if
     ! the speed guard speaks only when every particle is in place
     if (sim%particles_move .and. len(failure) == 0) then
-      call particles_agree(sim%parts, sim%dom, fast_id, sim%fast, lowest=nint(v(S_FAST)))
+      call particles_agree(sim%parts, fast_id, sim%fast, lowest=nint(v(S_FAST)))
     else
       sim%fast = ''
     end if
