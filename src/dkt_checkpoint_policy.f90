@@ -9,7 +9,7 @@ module dkt_checkpoint_policy
   use dkt_errors, only: fatal_all, warn
   use dkt_config, only: config_t, lattice_params_t
   use dkt_particles, only: particle_t, particles_gather, particles_distribute
-  use dkt_particle_links, only: particles_find_links
+  use dkt_links, only: links_find
   use dkt_checkpoint, only: checkpoint_t, checkpoint_write, checkpoint_read, checkpoint_name, &
                             checkpoint_rows, &
                             NSTATE, STORAGE_NAMES
@@ -273,7 +273,7 @@ contains
         end associate
       end do
       call particles_distribute(sim%parts, sim%dom, all)
-      call particles_find_links(sim%parts, sim%dom)
+      call links_find(sim%links, sim%parts, sim%dom)
     end if
     if (sim%pair_on) then
       sim%pair%n = size(chk%t_start)

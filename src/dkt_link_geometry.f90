@@ -5,7 +5,7 @@
 !> of two) depending on the code around the expression: which products it has already computed
 !> for other uses, and where it has moved them out of a loop. Each computation here is compiled
 !> alone, so that every caller gets the bits of the expression as written; the callers are in
-!> other modules, where it is never inlined. dkt_link_search decides most nodes without the
+!> other modules, where it is never inlined. dkt_links_search decides most nodes without the
 !> call (inside_at). link_fractions takes q of many links in one loop: every input of a link,
 !> its disk's centre and radius too, is read per link, so that no product of the formula is
 !> shared between links or moved out of the loop, and each link's q has the bits of one call.

@@ -10,7 +10,7 @@ module dkt_output
   use dkt_mrt, only: collision_describe
   use dkt_fields, only: macroscopic, vorticity
   use dkt_particles, only: particle_t, particles_gather
-  use dkt_particle_links, only: particles_solid_field
+  use dkt_links, only: particles_solid_field
   use dkt_suspension, only: suspension_stats, suspension_bins, FRONT_FRACTION
   use dkt_choices, only: MOTION_FREE
   use dkt_diagnostics, only: pair_pattern, pair_gaps, drag_coefficient

@@ -1,20 +1,18 @@
 !> The motion of the particles (docs/model.md §3–4): Newton–Euler (E8) with gravity and buoyancy
 !> (E9) and the short-range forces of dkt_collisions (E10–E11), in sub-steps; each owner moves its
 !> own particles, the messages of dkt_particles bring the new states to the slabs that hold
-!> them, and the nodes the disks uncovered are refilled (dkt_particle_links).
+!> them (the caller then refills the nodes the disks uncovered: dkt_links).
 module dkt_particle_motion
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, pi
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
   use dkt_domain, only: domain_t
-  use dkt_store, only: lattice_t
   use dkt_collisions, only: collision_force_on, collision_partners
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
   use dkt_cells, only: cells_build, cells_near, cells_candidates
   use dkt_particles, only: particles_t, particles_exchange
   use dkt_particle_state, only: state_copy_first
-  use dkt_particle_links, only: particles_refill
   use dkt_lubrication, only: lubrication_add_pair, lubrication_add_walls
   implicit none
   private
@@ -32,13 +30,12 @@ contains
   !! forces, the other particles held at their start-of-step positions: a slab holds every
   !! partner of its own particles), prescribed ones by their given velocity. The owners then
   !! send the new states to the neighbouring slabs (particles_exchange): a particle whose centre
-  !! crossed into another slab is owned there from now on. Last, the nodes the particles
-  !! uncovered are refilled. When every particle is fixed (moving false) the owners compute
-  !! the contact forces and nothing is sent or refilled: no node is uncovered.
-  subroutine particles_move(ps, dom, f, end_walls, moving)
+  !! crossed into another slab is owned there from now on. The caller then refills the nodes
+  !! the particles uncovered (dkt_links' links_refill). When every particle is fixed (moving
+  !! false) the owners compute the contact forces and nothing is sent: no node is uncovered.
+  subroutine particles_move(ps, dom, end_walls, moving)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(inout) :: f
     logical, intent(in) :: end_walls(2) !! the lower, the upper end is a wall (E11 against it)
     logical, intent(in) :: moving    !! some particle is free or prescribed
     real(wp) :: h, ax, ay, gy, xs(ps%n), ys(ps%n), rs(ps%n), xk, yk
@@ -135,8 +132,6 @@ contains
     end do
     if (.not. moving) return
     call particles_exchange(ps, dom)
-    ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
-    if (.not. ps%fluid_interior) call particles_refill(ps, dom, f)
   contains
     !> Turn the explicit acceleration (ax, ay) of free particle k into that of E8 with the
     !! lubrication films of the partners `with` and the walls taken: with a = sum C n n^T and

@@ -1,6 +1,6 @@
 !> Resolved circular particles (docs/model.md §3): their state, who holds which, and the messages
 !> that keep it so (docs/design.md, "Particles across slabs"). The links and bounce-back are
-!> dkt_particle_links', the motion and contacts dkt_particle_motion's.
+!> dkt_links', the motion and contacts dkt_particle_motion's, the messages dkt_particle_comm's.
 !>
 !> Lattice units throughout: node (i, j) of global row j sits at (i - 1/2, j - 1/2). A particle
 !> is owned by the rank whose rows hold its centre (row j covers y in [j - 1, j)); a rank holds
@@ -18,7 +18,7 @@
 module dkt_particles
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, pi, i8
-  use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, BB_HALFWAY, BB_YU, BB_BFL
+  use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
   use dkt_domain, only: domain_t, domain_rows_for
   use dkt_cells, only: cells_t
   use dkt_collisions, only: collision_stable_substeps
@@ -33,32 +33,20 @@ module dkt_particles
                                comm_allgather, comm_messages, comm_bytes, SLAB_BELOW, SLAB_ABOVE
   implicit none
   private
-  public :: particles_t, particle_t, inner_link_t, particles_init, particles_stable_substeps, &
+  public :: particles_t, particle_t, particles_init, particles_stable_substeps, &
             particles_distribute, particles_exchange, particles_reduce_forces, particles_gather, &
             particles_resize_rows, particles_agree, particles_min, particles_lowest_free, &
             particles_first_above, particles_first_above_own, particles_reach_rows, &
-            particles_messages, particles_work, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED, &
-            BB_HALFWAY, BB_YU, BB_BFL
+            particles_messages, particles_work, MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
 
   !> per row-sum entry: particle id, global row, force x, y, torque
   integer, parameter :: NENTRY = 5
-
-  !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
-  !! is a lattice node outside k.
-  type :: inner_link_t
-    integer :: k = 0, i = 0, j = 0, d = 0 !! particle, column, local row of x_s, direction i
-    real(wp) :: q = 1                     !! fluid fraction of the link x_f -> x_s
-    logical :: ff = .false.               !! x_f is a fluid node
-    real(wp) :: val = 0                   !! f_i(x_s, t+1), saved before E6
-  end type inner_link_t
 
   type :: particles_t
     integer :: n = 0                    !! particles held here: own ones and ghosts
     integer :: ntotal = 0               !! particles of the scene
     type(particle_state_t) :: p         !! the n held, ascending id (capacity >= n)
     integer, allocatable :: home(:)     !! the rank that owns disk k of p
-    integer :: scheme = BB_YU
-    logical :: galilean = .false.       !! E7 with (e - u_w) (Wen et al. 2014)
     !> E8 moves a free particle by the mean hydrodynamic force and torque of this step and the
     !! last (coupling.average_force): drive_x(k), drive_y(k), drive_torque(k) hold what moves
     !! disk k of p this step
@@ -78,33 +66,6 @@ module dkt_particles
     real(wp) :: marg = 3                !! the reach beyond a disk within which a slab holds it
     !> the centres at the start of the step in cells of side 2 rmax + range, for the contacts
     type(cells_t) :: cells
-    !> the present centres in cells of side 2 rmax, for the nodes inside disks (place_for_nodes)
-    type(cells_t) :: ncells
-    !> the nodes of rows 0..nyl+1 inside a disk (the present centres, place_for_nodes)
-    logical, allocatable :: solid(:, :)
-    !> the disks (x, y, r) and the slab's first row y0 that `solid` and `ncells` were built from:
-    !! a placement of the same disks is skipped, and a new one clears only their boxes
-    integer :: nplaced = -1, placed_y0 = 0
-    real(wp), allocatable :: placed(:, :)
-    ! boundary links of this slab, ordered by particle, row, column, direction
-    integer :: nlinks = 0
-    integer, allocatable :: lp(:), lx(:), ly(:), ld(:)  !! particle, column, local row, direction
-    real(wp), allocatable :: lq(:)                      !! fluid fraction of the link
-    logical, allocatable :: lff(:)                      !! second fluid node available
-    integer, allocatable :: lrow(:)                     !! the row-sum entry of the link
-    !> the links of local row j are lorder(lstart(j) .. lstart(j + 1) - 1), in their order
-    integer, allocatable :: lorder(:), lstart(:)
-    ! E7 per particle and row: entry e sums the links of particle rk(e) in local row rj(e);
-    ! a particle's entries are rfirst(k)..rlast(k), ascending rows
-    integer :: nrows = 0
-    integer, allocatable :: rk(:), rj(:), rfirst(:), rlast(:)
-    real(wp), allocatable :: rows(:, :)                 !! (3, entry): force x, y, torque
-    ! interior links (coupling.interior = 'fluid' only), ordered like the boundary links
-    logical :: fluid_interior = .false.
-    integer :: ninner = 0
-    type(inner_link_t), allocatable :: inner(:)
-    real(wp), allocatable :: rho_first(:), rho_last(:)  !! density of rows 1, nyl (columns 1..nx)
-    real(wp), allocatable :: rho_below(:), rho_above(:) !! the same of halo rows 0, nyl+1
     ! the state before the move (refill), and the merge of the exchange, grown as needed
     integer :: nold = 0
     type(particle_state_t) :: old
@@ -112,49 +73,19 @@ module dkt_particles
     integer, allocatable, private :: mhome(:)
     !> the messages between neighbouring slabs and the particles' collectives
     type(particle_comm_t), private :: comm
-    !> the link work (the `work per step` line, the cost model of docs/performance.md): link
-    !! searches and the links they found, interior resets and the nodes they set
-    integer(i8) :: searches = 0, links_found = 0
-    integer(i8) :: resets = 0, nodes_reset = 0
-    ! the nodes inside each disk, a run of columns per row (dkt_link_search's place_for_nodes):
-    ! disk k of the last placement covers columns span(1, m, k)..span(2, m, k) of local row
-    ! span_j0(k) + m - 1, m = 1..span_nj(k); the *_old arrays keep the placement before it (the
-    ! disks before the move, for the refill): nplaced_old disks placed_old, first row
-    ! placed_y0_old
-    integer, allocatable :: span(:, :, :), span_j0(:), span_nj(:)
-    integer, allocatable :: span_old(:, :, :), span_j0_old(:), span_nj_old(:)
-    real(wp), allocatable :: placed_old(:, :)
-    integer :: nplaced_old = -1, placed_y0_old = 0
-    !> the first link of each row-sum entry (those of entry e are rlink(e)..rlink(e + 1) - 1)
-    integer, allocatable :: rlink(:)
-    !> what the last link search found and read, kept for the next one (dkt_link_search): the
-    !! kept_n disks (-1: none) of ids kept_id, whose runs were those of placement number
-    !! kept_placement (placements counts them), in a slab of first row kept_y0 and kept_nx x
-    !! kept_nyl nodes; their links kept_lx, kept_ly, kept_ld, kept_lff, kept_lrow and row-sum
-    !! entries kept_rj, kept_rlink, disk m's kept_rfirst..kept_rlast
-    integer :: kept_n = -1, kept_y0 = 0, kept_nx = 0, kept_nyl = 0
-    integer :: placements = 0, kept_placement = 0
-    integer, allocatable :: kept_id(:)
-    integer, allocatable :: kept_lx(:), kept_ly(:), kept_ld(:), kept_lrow(:), kept_rj(:)
-    integer, allocatable :: kept_rlink(:)
-    integer, allocatable :: kept_rfirst(:), kept_rlast(:)
-    logical, allocatable :: kept_lff(:)
   end type particles_t
 
 contains
 
   !> Set up the particles from centres, radii, velocities (lattice units) and motion modes, every
   !! rank from the whole scene; each then keeps its own and its ghosts (particles_distribute).
-  subroutine particles_init(ps, dom, x, y, r, u, v, omega, density_ratio, motion, scheme, &
-                            galilean, gravity, stiffness, stiffness_overlap, range, substeps, &
-                            fluid_interior, average_force, lub)
+  subroutine particles_init(ps, dom, x, y, r, u, v, omega, density_ratio, motion, gravity, &
+                            stiffness, stiffness_overlap, range, substeps, average_force, lub)
     type(particles_t), intent(out) :: ps
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: x(:), y(:), r(:), u(:), v(:), omega(:), density_ratio(:)
-    integer, intent(in) :: motion(:), scheme, substeps
-    logical, intent(in) :: galilean
+    integer, intent(in) :: motion(:), substeps
     real(wp), intent(in) :: gravity, stiffness, stiffness_overlap, range
-    logical, intent(in), optional :: fluid_interior !! coupling.interior = 'fluid'
     logical, intent(in), optional :: average_force  !! coupling.average_force
     type(lubrication_t), intent(in), optional :: lub !! collision.lubrication and its keys
     type(particle_t), allocatable :: all(:)
@@ -176,8 +107,6 @@ contains
         all(k)%omega = omega(k)
       end if
     end do
-    ps%scheme = scheme
-    ps%galilean = galilean
     ps%gravity = gravity
     ps%stiffness = stiffness
     ps%stiffness_overlap = stiffness_overlap
@@ -190,18 +119,8 @@ contains
     ps%marg = particles_reach(ps%rmax, ps%partner_range)
     ps%substeps_needed = collision_stable_substeps(all%r, all%mass, all%motion == MOTION_FREE, &
                                                    stiffness, stiffness_overlap, range)
-    allocate (ps%lp(0), ps%lx(0), ps%ly(0), ps%ld(0), ps%lq(0), ps%lff(0), ps%lrow(0))
-    allocate (ps%rk(0), ps%rj(0), ps%rows(3, 0))
     call comm_init(ps%comm, dom)
-    if (present(fluid_interior)) ps%fluid_interior = fluid_interior
     if (present(average_force)) ps%average_force = average_force
-    if (ps%fluid_interior) then
-      allocate (ps%inner(0))
-      allocate (ps%rho_first(dom%nx), ps%rho_last(dom%nx), ps%rho_below(dom%nx), &
-                ps%rho_above(dom%nx))
-      ps%rho_below = 1.0_wp
-      ps%rho_above = 1.0_wp
-    end if
     call particles_distribute(ps, dom, all)
   end subroutine particles_init
 
@@ -414,22 +333,25 @@ contains
   !> E7 totals: each slab sends the per-row sums of its ghosts' links to their owners (the
   !! neighbours), and each owner adds a particle's rows in global row order: those from the slab
   !! below, its own, those from the slab above. Rows without links add nothing, so the total has
-  !! the same bits as a sum over every row of the channel, on any number of ranks.
-  subroutine particles_reduce_forces(ps, dom)
+  !! the same bits as a sum over every row of the channel, on any number of ranks. Disk k's row
+  !! sums are rows(:, e) of local rows rj(e), e = rfirst(k)..rlast(k) (dkt_links).
+  subroutine particles_reduce_forces(ps, dom, rfirst, rlast, rj, rows)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: dom
+    integer, intent(in) :: rfirst(:), rlast(:), rj(:)
+    real(wp), intent(in) :: rows(:, :)
     integer :: k, e, md, mu, b, c, id
     real(wp) :: s(3), entry(NENTRY)
     call comm_start(ps%comm, NENTRY)
     do k = 1, ps%n
       if (ps%home(k) == dom%rank) cycle
-      if (ps%rfirst(k) > ps%rlast(k)) cycle
+      if (rfirst(k) > rlast(k)) cycle
       if (ps%home(k) /= dom%below .and. ps%home(k) /= dom%above) &
         call internal_error('particles_reduce_forces: particle '//itoa(ps%p%id(k))// &
                             ' held by rank '//itoa(dom%rank)//' is owned by rank '// &
                             itoa(ps%home(k))//', not a neighbour')
-      do e = ps%rfirst(k), ps%rlast(k)
-        entry = [real(ps%p%id(k), wp), real(dom%y0 + ps%rj(e), wp), ps%rows(:, e)]
+      do e = rfirst(k), rlast(k)
+        entry = [real(ps%p%id(k), wp), real(dom%y0 + rj(e), wp), rows(:, e)]
         if (ps%home(k) == dom%below) then
           call comm_put(ps%comm, SLAB_BELOW, entry)
         else
@@ -456,8 +378,8 @@ contains
         end if
         b = b + 1
       end do
-      do e = ps%rfirst(k), ps%rlast(k)
-        s = s + ps%rows(:, e)
+      do e = rfirst(k), rlast(k)
+        s = s + rows(:, e)
       end do
       do while (c <= mu)
         if (comm_id(ps%comm, SLAB_ABOVE, c) > id) exit
@@ -514,7 +436,7 @@ contains
 
   !> The slab now holds dom%nyl rows of a channel of dom%ny (a window that grew, docs/model.md
   !! §5): the particles are gathered with the old rows and held anew. The caller finds the
-  !! links again (particles_find_links).
+  !! links again (dkt_links' links_find).
   subroutine particles_resize_rows(ps, old, dom)
     type(particles_t), intent(inout) :: ps
     type(domain_t), intent(in) :: old, dom
@@ -593,16 +515,13 @@ contains
     calls = comm_messages(ps%comm)
   end function particles_messages
 
-  !> This rank's particle work per step so far: the bytes sent to neighbours per step (over
-  !! `steps`), the links a search found and the nodes an interior reset set (means over the
-  !! searches and resets made), and the particles held now.
+  !> This rank's particle messages per step so far: the bytes sent to neighbours per step (over
+  !! `steps`), and the particles held now.
   pure function particles_work(ps, steps) result(work)
     type(particles_t), intent(in) :: ps
     integer, intent(in) :: steps
-    real(wp) :: work(4)
-    work = [real(comm_bytes(ps%comm), wp)/max(steps, 1), &
-            real(ps%links_found, wp)/max(ps%searches, 1_i8), &
-            real(ps%nodes_reset, wp)/max(ps%resets, 1_i8), real(ps%n, wp)]
+    real(wp) :: work(2)
+    work = [real(comm_bytes(ps%comm), wp)/max(steps, 1), real(ps%n, wp)]
   end function particles_work
 
 end module dkt_particles

@@ -17,6 +17,7 @@ module dkt_report
   use dkt_run_state, only: simulation_t
   use dkt_timers, only: timer_seconds, timer_name, N_PARTS
   use dkt_particles, only: particles_messages, particles_work
+  use dkt_links, only: links_count, links_work
   implicit none
   private
   public :: progress_t, report_summary, report_start, report_progress, report_performance
@@ -117,7 +118,7 @@ contains
       end if
       if (sim%particles_on) then
         write (particles, '(a,i0,a,i0,a)') 'particles: ', sim%parts%ntotal, ' (', &
-          sim%parts%nlinks, ' boundary links on rank 0)'
+          links_count(sim%links), ' boundary links on rank 0)'
       else
         particles = 'particles: none'
       end if
@@ -268,7 +269,8 @@ contains
     integer, intent(in) :: steps
     real(wp) :: work(5)
     character(len=240) :: line
-    work(1:4) = particles_work(sim%parts, steps)
+    work([1, 4]) = particles_work(sim%parts, steps)
+    work(2:3) = links_work(sim%links)
     work(5) = real(sim%dom%nx, wp)*sim%dom%nyl
     call MPI_Allreduce(MPI_IN_PLACE, work, 5, MPI_WP, MPI_MAX, sim%dom%comm)
     write (line, '(a,i0,a,i0,a,i0,a,i0,a,i0,a,i0,a)') 'work per step: ', nint(work(5), i8), &

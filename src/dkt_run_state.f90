@@ -8,6 +8,7 @@ module dkt_run_state
   use dkt_domain, only: domain_t
   use dkt_boundary, only: boundary_t
   use dkt_particles, only: particles_t
+  use dkt_links, only: links_t
   use dkt_window, only: window_t
   use dkt_diagnostics, only: pair_diag_t
   use dkt_store, only: lattice_t
@@ -27,6 +28,7 @@ module dkt_run_state
     logical :: in_place = .false.   !! lbm.streaming = 'in_place': f_next is f itself
     type(sweep_t) :: ws             !! the row buffers of the in-place sweep
     type(particles_t) :: parts      !! allocated only when the scene has particles
+    type(links_t) :: links          !! their boundary links (allocated with them)
     logical :: particles_on = .false.
     logical :: particles_move = .false. !! some particle is free or prescribed
     !> the contact sub-steps taken instead of collision.substeps, for the start-up summary's

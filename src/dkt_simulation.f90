@@ -15,12 +15,12 @@ module dkt_simulation
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_lubrication, only: lubrication_t
   use dkt_initial, only: initial_state
-  use dkt_particles, only: particles_init, particles_reduce_forces, particles_stable_substeps, &
-                           particles_resize_rows, particles_reach_rows, particles_exchange, &
-                           particles_agree, particles_min, particles_first_above_own
-  use dkt_particle_links, only: particles_find_links, particles_bounce, particles_interior, &
-                                particles_interior_after_move, &
-                                particles_inner_save, particles_inner_write
+  use dkt_particles, only: particles_init, particles_stable_substeps, particles_resize_rows, &
+                           particles_reach_rows, particles_exchange, particles_agree, &
+                           particles_min, particles_first_above_own
+  use dkt_links, only: links_init, links_find, links_bounce, links_interior, &
+                       links_interior_after_move, links_inner_save, links_inner_write, &
+                       links_refill, links_reduce_forces, links_fluid_interior
   use dkt_particle_motion, only: particles_move
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
                          MOTION_FIXED, MOTION_PRESCRIBED, &
@@ -161,11 +161,12 @@ contains
     lub%hmin = sim%cfg%collision%lubrication_min
     associate (p => sim%lp%particles, c => sim%cfg%collision)
       call particles_init(sim%parts, sim%dom, p%x, p%y, p%r, p%u, p%v, p%omega, p%density, &
-                          motion, scheme, sim%cfg%coupling%momentum_kind == MOMENTUM_GALILEAN, &
-                          p%gravity, p%stiffness, p%stiffness_overlap, c%range, c%substeps, &
-                          sim%cfg%coupling%interior_kind == INTERIOR_FLUID, &
-                          sim%cfg%coupling%average_force, lub)
+                          motion, p%gravity, p%stiffness, p%stiffness_overlap, c%range, &
+                          c%substeps, sim%cfg%coupling%average_force, lub)
     end associate
+    call links_init(sim%links, sim%dom, scheme, &
+                    sim%cfg%coupling%momentum_kind == MOMENTUM_GALILEAN, &
+                    sim%cfg%coupling%interior_kind == INTERIOR_FLUID)
     sim%particles_move = any(motion /= MOTION_FIXED)
     ! docs/model.md §4: a stiff contact law is sub-stepped, not softened, and the log says so;
     ! more than MAX_SUBSTEPS means a stiffness far off (a run that would never end) and is refused
@@ -190,8 +191,8 @@ contains
       ! the start-up summary prints it (report_summary), after the banner
       sim%substep_note = trim(line)
     end if
-    call particles_find_links(sim%parts, sim%dom)
-    if (lattice_allocated(sim%f)) call particles_interior(sim%parts, sim%dom, sim%f)
+    call links_find(sim%links, sim%parts, sim%dom)
+    if (lattice_allocated(sim%f)) call links_interior(sim%links, sim%parts, sim%dom, sim%f)
   end subroutine setup_particles
 
   !> One time step n of the solver (docs/model.md §1–2): stream-collide with the boundaries,
@@ -287,7 +288,7 @@ contains
     integer, intent(in) :: n
     character(len=:), allocatable, intent(out) :: failure !! '' or why a particle is out of place
     failure = ''
-    if (sim%parts%fluid_interior) then
+    if (links_fluid_interior(sim%links)) then
       call fluid_interior_sweep(sim)
     else
       associate (nyl => sim%dom%nyl)
@@ -296,7 +297,7 @@ contains
         call fill_local_ghosts(sim%bc, sim%dom, sim%f)
         call timer_stop(PART_FLOW)
         call timer_start(PART_LINKS)
-        call particles_bounce(sim%parts, sim%dom, sim%f, 2, nyl - 1)
+        call links_bounce(sim%links, sim%parts, sim%dom, sim%f, 2, nyl - 1)
         call timer_stop(PART_LINKS)
         call timer_start(PART_FLOW)
         call sweep_part(sim, 1)
@@ -304,8 +305,8 @@ contains
         call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
         call timer_stop(PART_FLOW)
         call timer_start(PART_LINKS)
-        call particles_bounce(sim%parts, sim%dom, sim%f, 1, 1)
-        call particles_bounce(sim%parts, sim%dom, sim%f, nyl, nyl)
+        call links_bounce(sim%links, sim%parts, sim%dom, sim%f, 1, 1)
+        call links_bounce(sim%links, sim%parts, sim%dom, sim%f, nyl, nyl)
         call timer_stop(PART_LINKS)
         call timer_start(PART_FLOW)
         call sweep_part(sim, 2)
@@ -318,21 +319,22 @@ contains
     ! the interior nodes: reset now when the window may move the rows under them; otherwise
     ! after the move, and only when something reads the lattice (simulation_settle)
     sim%interior_due = .false.
-    if (.not. sim%parts%fluid_interior) then
+    if (.not. links_fluid_interior(sim%links)) then
       if (sim%particles_move .and. .not. sim%window_on) then
         sim%interior_due = .true.
       else
         call timer_start(PART_LINKS)
-        call particles_interior(sim%parts, sim%dom, sim%f_next)
+        call links_interior(sim%links, sim%parts, sim%dom, sim%f_next)
         call timer_stop(PART_LINKS)
       end if
     end if
     call timer_start(PART_PARTICLES)
     ! each owner adds the rows of its particles' links, those of the neighbouring slabs too
-    call particles_reduce_forces(sim%parts, sim%dom)
+    call links_reduce_forces(sim%links, sim%parts, sim%dom)
     ! the owners move their particles (fixed ones stay) and send the new states to the
-    ! neighbouring slabs that hold them
-    call particles_move(sim%parts, sim%dom, sim%f_next, ends_at_rest(sim), sim%particles_move)
+    ! neighbouring slabs that hold them; the nodes the disks uncovered are refilled
+    call particles_move(sim%parts, sim%dom, ends_at_rest(sim), sim%particles_move)
+    if (sim%particles_move) call links_refill(sim%links, sim%parts, sim%dom, sim%f_next)
     call timer_stop(PART_PARTICLES)
     call timer_start(PART_WINDOW)
     if (sim%window_on) call follow_particles(sim)
@@ -342,7 +344,7 @@ contains
     call timer_stop(PART_GUARDS)
     call timer_start(PART_LINKS)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
-    if (sim%particles_move .and. len(failure) == 0) call particles_find_links(sim%parts, sim%dom)
+    if (sim%particles_move .and. len(failure) == 0) call links_find(sim%links, sim%parts, sim%dom)
     call timer_stop(PART_LINKS)
   end subroutine particle_step
 
@@ -355,7 +357,7 @@ contains
     type(simulation_t), intent(inout) :: sim
     if (.not. sim%interior_due) return
     call timer_start(PART_LINKS)
-    call particles_interior_after_move(sim%parts, sim%dom, sim%f)
+    call links_interior_after_move(sim%links, sim%parts, sim%dom, sim%f)
     call timer_stop(PART_LINKS)
     sim%interior_due = .false.
   end subroutine simulation_settle
@@ -375,9 +377,9 @@ contains
     call fill_halo_ghosts(sim%bc, sim%dom, sim%f)
     call timer_stop(PART_FLOW)
     call timer_start(PART_LINKS)
-    call particles_inner_save(sim%parts, sim%dom, sim%f)
-    call particles_bounce(sim%parts, sim%dom, sim%f, 1, sim%dom%nyl)
-    call particles_inner_write(sim%parts, sim%f)
+    call links_inner_save(sim%links, sim%parts, sim%dom, sim%f)
+    call links_bounce(sim%links, sim%parts, sim%dom, sim%f, 1, sim%dom%nyl)
+    call links_inner_write(sim%links, sim%f)
     call timer_stop(PART_LINKS)
     call timer_start(PART_FLOW)
     call sweep_part(sim, 1)
@@ -669,7 +671,7 @@ contains
   !! are copies of the old upper end row (domain_fill_new_rows: the outflow's zero gradient,
   !! not fluid at rest, which would stop the outflow at once). The lattices, the sweep's row
   !! buffers and the particles' per-row sums are sized anew; the caller finds the boundary
-  !! links (particles_find_links). Called between the sweep and the swap, where f_next holds
+  !! links (links_find). Called between the sweep and the swap, where f_next holds
   !! the current populations (f as well in place), or at a resume before the checkpoint's
   !! populations are read. Every rank decides a growth from the same particle state and every
   !! row keeps its values, so the bits do not depend on the decomposition.

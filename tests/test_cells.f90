@@ -1,5 +1,5 @@
 !> The link search through the cell list (dkt_cells) finds what a search over every disk finds.
-!>  - particles_find_links on a crowd of 150 disks of radius 1.5..3.5 dropped at random into a
+!>  - links_find on a crowd of 150 disks of radius 1.5..3.5 dropped at random into a
 !>    60 x 90 closed channel (many overlapping, some across a side or an end), with interior
 !>    links (coupling.interior = 'fluid'): the boundary links (particle, column, row, direction,
 !>    second fluid node) and the interior links (particle, node, direction, fluid neighbour) are
@@ -13,13 +13,15 @@ program test_cells
   use dkt_check, only: check, finish
   use dkt_lattice, only: ex, ey
   use dkt_domain, only: domain_t, domain_init
-  use dkt_particles, only: particles_t, particles_init, MOTION_FREE, BB_YU
-  use dkt_particle_links, only: particles_find_links
+  use dkt_choices, only: BB_YU
+  use dkt_particles, only: particles_t, particles_init, MOTION_FREE
+  use dkt_links, only: links_t, links_init, links_find, links_count, links_table, links_inner_table
   use dkt_cells, only: cells_t, cells_build, cells_near
   implicit none
   integer, parameter :: n = 150, nx = 60, ny = 90
   type(domain_t) :: dom
   type(particles_t) :: ps
+  type(links_t) :: lk
   character(len=:), allocatable :: err
   real(wp) :: px(n), py(n), pr(n), zero(n)
   integer, allocatable :: want(:, :), want_inner(:, :), got(:, :), got_inner(:, :)
@@ -37,21 +39,21 @@ program test_cells
   call domain_init(dom, MPI_COMM_WORLD, nx, ny, .false., .false., 1, err)
   if (len(err) > 0) error stop err
   call particles_init(ps, dom, px, py, pr, zero, zero, zero, [(1.5_wp, k=1, n)], &
-                      [(MOTION_FREE, k=1, n)], BB_YU, .false., 1.0e-5_wp, 1.0_wp, 1.0_wp, &
-                      1.0_wp, 1, fluid_interior=.true.)
-  call particles_find_links(ps, dom)
+                      [(MOTION_FREE, k=1, n)], 1.0e-5_wp, 1.0_wp, 1.0_wp, 1.0_wp, 1)
+  call links_init(lk, dom, BB_YU, .false., .true.)
+  call links_find(lk, ps, dom)
   call search_all(want, want_inner)
 
   ! (links name the particles a slab holds by their place there; the table, by their number)
-  got = reshape([(ps%p%id(ps%lp(l)), ps%lx(l), ps%ly(l), ps%ld(l), merge(1, 0, ps%lff(l)), &
-                  l=1, ps%nlinks)], [5, ps%nlinks])
-  got_inner = reshape([(ps%p%id(ps%inner(l)%k), ps%inner(l)%i, ps%inner(l)%j, ps%inner(l)%d, &
-                        merge(1, 0, ps%inner(l)%ff), l=1, ps%ninner)], [5, ps%ninner])
+  got = links_table(lk)
+  got(1, :) = ps%p%id(got(1, :))
+  got_inner = links_inner_table(lk)
+  got_inner(1, :) = ps%p%id(got_inner(1, :))
   call check('cells: the boundary links of a search over every disk, in its order', &
-             same(got, want), real(ps%nlinks - size(want, 2), wp))
+             same(got, want), real(size(got, 2) - size(want, 2), wp))
   call check('cells: the interior links of a search over every disk, in its order', &
-             same(got_inner, want_inner), real(ps%ninner - size(want_inner, 2), wp))
-  call check('cells: the crowd has links', ps%nlinks > 100, real(ps%nlinks, wp))
+             same(got_inner, want_inner), real(size(got_inner, 2) - size(want_inner, 2), wp))
+  call check('cells: the crowd has links', links_count(lk) > 100, real(links_count(lk), wp))
   call check('cells: some nodes lie in two disks', in_two() > 0, real(in_two(), wp))
   call check('cells: a query returns a small part of the crowd', query_size() < n/5, &
              real(query_size(), wp))

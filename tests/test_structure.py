@@ -1,9 +1,10 @@
 """The structure limits of docs/design.md hold for src/, and tools/check_structure.py, which
 checks them, finds each kind of breach: a file over 800 lines, a procedure over 150 lines (a
-host counted with what it contains, continuation lines and strings with '!' handled), an input
-module used for more than its types and constants or without 'only:'. The main program may use
-the input layer freely. No Python file of postproc/, tests/ or tools/ edits sys.path: each finds
-the package and the test helpers on PYTHONPATH, as ctest and the documented commands set it."""
+host counted with what it contains, a submodule's separate module procedure too, continuation
+lines and strings with '!' handled), an input module used for more than its types and
+constants or without 'only:'. The main program may use the input layer freely. No Python file
+of postproc/, tests/ or tools/ edits sys.path: each finds the package and the test helpers on
+PYTHONPATH, as ctest and the documented commands set it."""
 
 import os
 import re
@@ -76,6 +77,27 @@ def test_a_long_procedure_is_found_with_what_it_contains(tmp_path):
     lines = result.stdout.splitlines()
     assert len(lines) == 1, result.stdout
     assert "procedure host is" in lines[0] and "more than 150" in lines[0]
+
+
+def test_a_long_separate_module_procedure_of_a_submodule_is_found(tmp_path):
+    # the interface in the parent is not a body; the body in the submodule is measured, and a
+    # generic interface's `module procedure` list is neither
+    parent = ("module dkt_par\n  implicit none\n  interface\n    module subroutine p(x)\n"
+              "      real, intent(inout) :: x\n    end subroutine p\n"
+              "    module subroutine q(x)\n      real, intent(inout) :: x\n"
+              "    end subroutine q\n  end interface\n  interface gen\n"
+              "    module procedure r1, r2\n  end interface gen\nend module dkt_par\n")
+    body = "".join(f"    x = x + {k}\n" for k in range(160))
+    sub = ("submodule (dkt_par) dkt_par_impl\n  implicit none\ncontains\n"
+           f"  module procedure p\n{body}  end procedure p\n"
+           "  module procedure q\n    x = 1\n  end procedure q\nend submodule dkt_par_impl\n")
+    (tmp_path / "dkt_par.f90").write_text(parent)
+    (tmp_path / "dkt_par_impl.f90").write_text(sub)
+    result = run(tmp_path)
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    assert len(lines) == 1, result.stdout
+    assert "dkt_par_impl.f90:4: procedure p is 162 lines" in lines[0]
 
 
 def test_an_input_module_used_for_more_than_its_types_is_found(tmp_path):

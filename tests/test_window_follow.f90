@@ -13,7 +13,7 @@ program test_window_follow
   use dkt_check, only: check, finish
   use dkt_domain, only: domain_t, domain_init, domain_free
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free
-  use dkt_particles, only: particles_t, particles_init, MOTION_FREE, BB_YU
+  use dkt_particles, only: particles_t, particles_init, MOTION_FREE
   use dkt_window, only: window_t, window_init, window_follow
   implicit none
   integer, parameter :: NX = 8, NY = 40
@@ -50,8 +50,7 @@ contains
     type(particles_t) :: ps
     call window_init(win, 0.0_wp, 10.0_wp, 1.0_wp)
     call particles_init(ps, dom, [4.0_wp], [y0], [1.0_wp], [0.0_wp], [0.0_wp], [0.0_wp], &
-                        [1.01_wp], [MOTION_FREE], BB_YU, .false., 0.0_wp, 1.0_wp, 1.0_wp, &
-                        1.0_wp, 1)
+                        [1.01_wp], [MOTION_FREE], 0.0_wp, 1.0_wp, 1.0_wp, 1.0_wp, 1)
     call window_follow(win, dom, ps, f)
     if (y1 >= 0.0_wp) then
       call check(name, win%shift == rows .and. ps%p%y(1) == y1, real(win%shift, wp))

@@ -29,7 +29,10 @@ INPUT_LAYER = re.compile(r"^dkt_(config\w*|cli|registry|namelist\w*|scene\w*|che
 _PREFIX = r"(?:(?:pure|impure|elemental|recursive|module|non_recursive|integer|logical|" \
           r"complex|real|double\s+precision|character|type|class)\b[^:]*?\s+)*"
 START = re.compile(r"^\s*" + _PREFIX + r"(subroutine|function)\s+(\w+)", re.I)
-END = re.compile(r"^\s*end\s*(subroutine|function)\b", re.I)
+END = re.compile(r"^\s*end\s*(subroutine|function|procedure)\b", re.I)
+# a separate module procedure's body, in a submodule (outside an interface block)
+MODULE_PROCEDURE = re.compile(r"^\s*module\s+procedure\s+(\w+)\s*$", re.I)
+SUBMODULE = re.compile(r"^\s*submodule\s*\(\s*(\w+)[^)]*\)\s*(\w+)\s*$", re.I)
 MODULE = re.compile(r"^\s*module\s+(\w+)\s*$", re.I)
 PROGRAM = re.compile(r"^\s*program\s+(\w+)", re.I)
 USE = re.compile(r"^\s*use\s*(?:,\s*\w+\s*)?(?:::)?\s*(\w+)\s*(,\s*only\s*:(.*))?$", re.I)
@@ -84,6 +87,15 @@ def check_file(path: Path) -> list[str]:
             continue
         if re.match(r"^end\s*interface\b", low):
             in_interface -= 1
+            continue
+        m = SUBMODULE.match(line)
+        if m:
+            # (a submodule is part of its parent: the parent's layer)
+            unit, unit_is_program = m.group(1).lower(), False
+            continue
+        m = MODULE_PROCEDURE.match(line)
+        if m and not in_interface:
+            stack.append((m.group(1), number))
             continue
         m = MODULE.match(line)
         if m and not low.startswith("module procedure"):

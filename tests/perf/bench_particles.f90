@@ -3,7 +3,7 @@
 !> disks of diameter 4 spacings, 6 spacings apart, in a closed box that just holds them).
 !>  - contact: the E10–E11 force on every disk (particles_move with nothing moving, so that
 !>    every disk's force is summed once and nothing is sent or refilled);
-!>  - links: the boundary-link search (particles_find_links).
+!>  - links: the boundary-link search (links_find).
 !> Prints one line per count: n, then the median and the minimum over the repeats of each, in
 !> milliseconds. Run on one rank:
 !>     build/tests/bench_particles 1000 10000        (counts; a count is rounded to side^2)
@@ -11,9 +11,9 @@ program bench_particles
   use mpi_f08, only: MPI_Init, MPI_Finalize, MPI_Wtime, MPI_COMM_WORLD
   use dkt_kinds, only: wp
   use dkt_domain, only: domain_t, domain_init
-  use dkt_store, only: lattice_t
-  use dkt_particles, only: particles_t, particles_init, MOTION_FREE, BB_YU
-  use dkt_particle_links, only: particles_find_links
+  use dkt_choices, only: BB_YU
+  use dkt_particles, only: particles_t, particles_init, MOTION_FREE
+  use dkt_links, only: links_t, links_init, links_find, links_count
   use dkt_particle_motion, only: particles_move
   implicit none
   integer, parameter :: repeats = 5
@@ -35,7 +35,7 @@ contains
     integer, intent(in) :: n_wanted
     type(domain_t) :: dom
     type(particles_t) :: ps
-    type(lattice_t) :: f
+    type(links_t) :: lk
     character(len=:), allocatable :: err
     real(wp), allocatable :: x(:), y(:), zero(:)
     real(wp) :: t_contact(repeats), t_links(repeats), t0
@@ -52,19 +52,19 @@ contains
                      1, err)
     if (len(err) > 0) error stop err
     call particles_init(ps, dom, x, y, [(radius, k=1, n)], zero, zero, zero, [(1.01_wp, k=1, n)], &
-                        [(MOTION_FREE, k=1, n)], BB_YU, .false., 1.0e-5_wp, 1.0_wp, 1.0_wp, &
-                        1.0_wp, 1)
+                        [(MOTION_FREE, k=1, n)], 1.0e-5_wp, 1.0_wp, 1.0_wp, 1.0_wp, 1)
+    call links_init(lk, dom, BB_YU, .false., .false.)
     do rep = 1, repeats
       t0 = MPI_Wtime()
-      call particles_move(ps, dom, f, [.true., .true.], .false.)
+      call particles_move(ps, dom, [.true., .true.], .false.)
       t_contact(rep) = 1.0e3_wp*(MPI_Wtime() - t0)
       t0 = MPI_Wtime()
-      call particles_find_links(ps, dom)
+      call links_find(lk, ps, dom)
       t_links(rep) = 1.0e3_wp*(MPI_Wtime() - t0)
     end do
     write (*, '(a, i8, 2(a, f12.3, a, f12.3), a, i9)') 'n', n, '  contact ms', median(t_contact), &
       ' min', minval(t_contact), '  links ms', median(t_links), ' min', minval(t_links), &
-      '  links', ps%nlinks
+      '  links', links_count(lk)
   end subroutine measure
 
   real(wp) function median(t)

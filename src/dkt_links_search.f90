@@ -1,6 +1,6 @@
 !> The search for the boundary links of the disks a slab holds (docs/model.md §3): the nodes
 !> each disk covers, row by row, the mask of the nodes inside a disk, and the links (without
-!> their fractions q, which dkt_particle_links computes) with the row-sum entries and the order
+!> their fractions q, which dkt_links_bounce computes) with the row-sum entries and the order
 !> by row that the bounce-back reads.
 !>
 !> A node (i, j) lies inside a disk (X, Y, r) when |x - X|^2 + |y - Y|^2 < r^2, with the bits of
@@ -14,18 +14,15 @@
 !> The links of a disk depend on its runs and on the mask near it, nothing else: a disk whose
 !> runs are those of the last search, with no node of the mask changed near it, has the links it
 !> had then, which are taken over instead of searched again (search_links). q is computed anew
-!> for every link each step (dkt_particle_links), as the centres move.
-module dkt_link_search
+!> for every link each step (dkt_links_bounce), as the centres move.
+submodule (dkt_links) dkt_links_search
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp
   use dkt_lattice, only: ex, ey
   use dkt_domain, only: domain_t
   use dkt_cells, only: cells_build, cells_box
-  use dkt_particles, only: particles_t
   use dkt_link_geometry, only: disk_inside
   implicit none
-  private
-  public :: place_for_nodes, disk_spans, old_spans_of, is_fluid, search_links
 
   !> The ends of the run of a row without nodes inside the disk: no column lies within them,
   !! and they leave the other runs' smallest start and largest end as they are.
@@ -54,96 +51,86 @@ contains
     end if
   end function inside_at
 
-  !> Place the present centres for is_fluid: in cells (a node lies only in disks whose centres
-  !! are within rmax of it), the runs of nodes of rows 0..nyl+1 inside each disk the slab holds
-  !! (disk_spans) and their mask (a slab holds every disk that reaches a row beyond it). The
-  !! disks of the last placement are kept (ps%placed) with their runs: when the slab and every
-  !! disk are the same (the links are found after the refill of the same step, unless the
-  !! window moved) nothing is done; otherwise the runs become those of the placement before
-  !! (the refill reads the disks before the move from them), and only their nodes are cleared
-  !! from the mask, not the whole slab.
-  subroutine place_for_nodes(ps, dom)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
+  module procedure place_for_nodes
     integer :: k, j, m, nrows
     logical :: near
     real(wp), allocatable :: tr(:, :)
     integer, allocatable :: ti(:, :, :)
-    if (allocated(ps%solid)) then
-      if (ubound(ps%solid, 1) /= dom%nx .or. ubound(ps%solid, 2) /= dom%nyl + 1) &
-        deallocate (ps%solid)
+    if (allocated(lk%solid)) then
+      if (ubound(lk%solid, 1) /= dom%nx .or. ubound(lk%solid, 2) /= dom%nyl + 1) &
+        deallocate (lk%solid)
     end if
-    if (.not. allocated(ps%solid)) then
-      allocate (ps%solid(1:dom%nx, 0:dom%nyl + 1))
-      ps%nplaced = -1
+    if (.not. allocated(lk%solid)) then
+      allocate (lk%solid(1:dom%nx, 0:dom%nyl + 1))
+      lk%nplaced = -1
     end if
-    if (ps%nplaced == ps%n .and. ps%placed_y0 == dom%y0) then
-      if (all(ps%placed(1, 1:ps%n) == ps%p%x(1:ps%n) .and. &
-              ps%placed(2, 1:ps%n) == ps%p%y(1:ps%n) .and. &
-              ps%placed(3, 1:ps%n) == ps%p%r(1:ps%n))) return
+    if (lk%nplaced == ps%n .and. lk%placed_y0 == dom%y0) then
+      if (all(lk%placed(1, 1:ps%n) == ps%p%x(1:ps%n) .and. &
+              lk%placed(2, 1:ps%n) == ps%p%y(1:ps%n) .and. &
+              lk%placed(3, 1:ps%n) == ps%p%r(1:ps%n))) return
     end if
-    if (ps%nplaced < 0 .or. ps%placed_y0 /= dom%y0) then
-      ps%solid = .false.
+    if (lk%nplaced < 0 .or. lk%placed_y0 /= dom%y0) then
+      lk%solid = .false.
     else
-      do k = 1, ps%nplaced
-        do m = 1, ps%span_nj(k)
-          j = ps%span_j0(k) + m - 1
-          ps%solid(max(ps%span(1, m, k), 1):min(ps%span(2, m, k), dom%nx), j) = .false.
+      do k = 1, lk%nplaced
+        do m = 1, lk%span_nj(k)
+          j = lk%span_j0(k) + m - 1
+          lk%solid(max(lk%span(1, m, k), 1):min(lk%span(2, m, k), dom%nx), j) = .false.
         end do
       end do
     end if
     ! the present runs become the old ones, and the old arrays take the new runs
-    call move_alloc(ps%placed, tr)
-    call move_alloc(ps%placed_old, ps%placed)
-    call move_alloc(tr, ps%placed_old)
-    call move_alloc(ps%span, ti)
-    call move_alloc(ps%span_old, ps%span)
-    call move_alloc(ti, ps%span_old)
-    call swap(ps%span_j0, ps%span_j0_old)
-    call swap(ps%span_nj, ps%span_nj_old)
-    ps%nplaced_old = ps%nplaced
-    ps%placed_y0_old = ps%placed_y0
-    call cells_build(ps%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
+    call move_alloc(lk%placed, tr)
+    call move_alloc(lk%placed_old, lk%placed)
+    call move_alloc(tr, lk%placed_old)
+    call move_alloc(lk%span, ti)
+    call move_alloc(lk%span_old, lk%span)
+    call move_alloc(ti, lk%span_old)
+    call swap(lk%span_j0, lk%span_j0_old)
+    call swap(lk%span_nj, lk%span_nj_old)
+    lk%nplaced_old = lk%nplaced
+    lk%placed_y0_old = lk%placed_y0
+    call cells_build(lk%ncells, ps%p%x(1:ps%n), ps%p%y(1:ps%n), 2.0_wp*ps%rmax)
     ! a disk of radius r covers at most 2 r + 3 rows of mask_box
     nrows = 4
     if (ps%n > 0) nrows = max(nrows, int(min(2.0_wp*maxval(ps%p%r(1:ps%n)), 1.0e6_wp)) + 4)
-    if (allocated(ps%placed)) then
-      if (size(ps%placed, 2) < ps%n) deallocate (ps%placed)
+    if (allocated(lk%placed)) then
+      if (size(lk%placed, 2) < ps%n) deallocate (lk%placed)
     end if
-    if (.not. allocated(ps%placed)) allocate (ps%placed(3, max(ps%n, 2*ps%nplaced, 16)))
-    if (allocated(ps%span)) then
-      if (size(ps%span, 2) < nrows .or. size(ps%span, 3) < ps%n) &
-        deallocate (ps%span, ps%span_j0, ps%span_nj)
+    if (.not. allocated(lk%placed)) allocate (lk%placed(3, max(ps%n, 2*lk%nplaced, 16)))
+    if (allocated(lk%span)) then
+      if (size(lk%span, 2) < nrows .or. size(lk%span, 3) < ps%n) &
+        deallocate (lk%span, lk%span_j0, lk%span_nj)
     end if
-    if (.not. allocated(ps%span)) then
-      m = size(ps%placed, 2)
-      allocate (ps%span(2, nrows, m), ps%span_j0(m), ps%span_nj(m))
+    if (.not. allocated(lk%span)) then
+      m = size(lk%placed, 2)
+      allocate (lk%span(2, nrows, m), lk%span_j0(m), lk%span_nj(m))
     end if
     do k = 1, ps%n
-      ps%placed(:, k) = [ps%p%x(k), ps%p%y(k), ps%p%r(k)]
+      lk%placed(:, k) = [ps%p%x(k), ps%p%y(k), ps%p%r(k)]
       ! (the runs of the placement before guess the ends when they are of a disk at nearly the
       ! same place)
       near = .false.
-      if (k <= ps%nplaced_old .and. ps%placed_y0_old == dom%y0) &
-        near = abs(ps%placed_old(1, k) - ps%p%x(k)) + abs(ps%placed_old(2, k) - ps%p%y(k)) < &
-               1.0_wp .and. ps%placed_old(3, k) == ps%p%r(k)
+      if (k <= lk%nplaced_old .and. lk%placed_y0_old == dom%y0) &
+        near = abs(lk%placed_old(1, k) - ps%p%x(k)) + abs(lk%placed_old(2, k) - ps%p%y(k)) < &
+               1.0_wp .and. lk%placed_old(3, k) == ps%p%r(k)
       if (near) then
-        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, ps%span_j0(k), ps%span_nj(k), &
-                        ps%span(:, :, k), ps%span_j0_old(k), ps%span_nj_old(k), &
-                        ps%span_old(:, :, k))
+        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, lk%span_j0(k), lk%span_nj(k), &
+                        lk%span(:, :, k), lk%span_j0_old(k), lk%span_nj_old(k), &
+                        lk%span_old(:, :, k))
       else
-        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, ps%span_j0(k), ps%span_nj(k), &
-                        ps%span(:, :, k))
+        call disk_spans(ps%p%x(k), ps%p%y(k), ps%p%r(k), dom, lk%span_j0(k), lk%span_nj(k), &
+                        lk%span(:, :, k))
       end if
-      do m = 1, ps%span_nj(k)
-        j = ps%span_j0(k) + m - 1
-        ps%solid(max(ps%span(1, m, k), 1):min(ps%span(2, m, k), dom%nx), j) = .true.
+      do m = 1, lk%span_nj(k)
+        j = lk%span_j0(k) + m - 1
+        lk%solid(max(lk%span(1, m, k), 1):min(lk%span(2, m, k), dom%nx), j) = .true.
       end do
     end do
-    ps%nplaced = ps%n
-    ps%placed_y0 = dom%y0
-    ps%placements = ps%placements + 1
-  end subroutine place_for_nodes
+    lk%nplaced = ps%n
+    lk%placed_y0 = dom%y0
+    lk%placements = lk%placements + 1
+  end procedure place_for_nodes
 
   !> The nodes i1..i2, j1..j2 of the mask (rows 0..nyl+1) that a disk at (x, y) of radius r can
   !! cover; none (i1 > i2) for a centre that is not finite (the box is clipped before it becomes
@@ -162,18 +149,8 @@ contains
     j2 = min(dom%nyl + 1, int(max(min(y + r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp))
   end subroutine mask_box
 
-  !> The nodes of the disk (x, y) of radius r in the rows of its mask box (rows 0..nyl+1 of the
-  !! slab): row j0 + m - 1 holds the columns sp(1, m)..sp(2, m) inside the disk, within
-  !! columns 0..nx+1 (the columns beyond the sides too, where a link may end); NO_LO, NO_HI when
-  !! none. nj rows (none for a centre that is not finite). Each end is the last column where
-  !! the test holds next to the first where it fails, both evaluated.
-  pure subroutine disk_spans(x, y, r, dom, j0, nj, sp, gj0, gnj, gsp)
-    real(wp), intent(in) :: x, y, r
-    type(domain_t), intent(in) :: dom
-    integer, intent(out) :: j0, nj
-    integer, intent(inout) :: sp(:, :)
+  module procedure disk_spans
     !> runs to start from (of the same disk a little earlier): rows gj0.. (gnj rows)
-    integer, intent(in), optional :: gj0, gnj, gsp(:, :)
     integer :: i1, i2, j2, m, ia, s, lo, hi, last
     real(wp) :: py, dy, h
     call mask_box(x, y, r, dom, i1, i2, j0, j2)
@@ -246,69 +223,58 @@ contains
       integer, intent(in) :: c
       clip = min(max(c, 0), last)
     end function clip
-  end subroutine disk_spans
+  end procedure disk_spans
 
   !> The columns lo..hi of local row j inside disk k of the present placement (NO_LO, NO_HI
   !! for none, or a row beyond the disk's).
-  pure subroutine span_of(ps, k, j, lo, hi)
-    type(particles_t), intent(in) :: ps
+  pure subroutine span_of(lk, k, j, lo, hi)
+    type(links_t), intent(in) :: lk
     integer, intent(in) :: k, j
     integer, intent(out) :: lo, hi
     integer :: m
-    m = j - ps%span_j0(k) + 1
-    if (m >= 1 .and. m <= ps%span_nj(k)) then
-      lo = ps%span(1, m, k)
-      hi = ps%span(2, m, k)
+    m = j - lk%span_j0(k) + 1
+    if (m >= 1 .and. m <= lk%span_nj(k)) then
+      lo = lk%span(1, m, k)
+      hi = lk%span(2, m, k)
     else
       lo = NO_LO
       hi = NO_HI
     end if
   end subroutine span_of
 
-  !> Whether the placement before the present one placed disk m at (x, y) of radius r in this
-  !! slab, whose runs old_spans then are (the refill's disks before the move).
-  pure logical function old_spans_of(ps, dom, m, x, y, r) result(kept)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: m
-    real(wp), intent(in) :: x, y, r
-    kept = m <= ps%nplaced_old .and. ps%placed_y0_old == dom%y0
-    if (kept) kept = ps%placed_old(1, m) == x .and. ps%placed_old(2, m) == y .and. &
-                     ps%placed_old(3, m) == r
-  end function old_spans_of
+  module procedure old_spans_of
+    kept = m <= lk%nplaced_old .and. lk%placed_y0_old == dom%y0
+    if (kept) kept = lk%placed_old(1, m) == x .and. lk%placed_old(2, m) == y .and. &
+                     lk%placed_old(3, m) == r
+  end procedure old_spans_of
 
-  !> Whether global node (i, jg) is a fluid node: in the channel and outside every particle.
-  !! Within the slab and a row beyond it the mask says it (place_for_nodes); elsewhere
-  !! fluid_far tests the disks near the node. Both need the present centres.
-  pure logical function is_fluid(ps, dom, i, jg)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    integer, intent(in) :: i, jg
+  module procedure is_fluid
     is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
     if (.not. is_fluid) return
     if (jg - dom%y0 >= 0 .and. jg - dom%y0 <= dom%nyl + 1) then
-      is_fluid = mask_fluid(ps, dom, i, jg - dom%y0)
+      is_fluid = mask_fluid(lk, dom, i, jg - dom%y0)
     else
-      is_fluid = fluid_far(ps, i, jg)
+      is_fluid = fluid_far(lk, ps, i, jg)
     end if
-  end function is_fluid
+  end procedure is_fluid
 
   !> Whether the channel node (i, jg), beyond the mask's rows, lies outside every particle the
   !! slab holds: only the disks of the cells within rmax of the node are tested.
-  pure logical function fluid_far(ps, i, jg) result(fluid)
+  pure logical function fluid_far(lk, ps, i, jg) result(fluid)
+    type(links_t), intent(in) :: lk
     type(particles_t), intent(in) :: ps
     integer, intent(in) :: i, jg
     integer :: k, l, i1, i2, j1, j2, jc
     real(wp) :: px, py
     px = i - 0.5_wp
     py = jg - 0.5_wp
-    call cells_box(ps%ncells, px, py, ps%rmax, i1, i2, j1, j2)
+    call cells_box(lk%ncells, px, py, ps%rmax, i1, i2, j1, j2)
     if (i1 == 0) then
       fluid = .not. any([(inside_at(ps%p%x(k), ps%p%y(k), ps%p%r(k), px, py), k=1, ps%n)])
       return
     end if
     fluid = .true.
-    associate (c => ps%ncells)
+    associate (c => lk%ncells)
       ! the cells i1..i2 of a row of cells hold one run of c%items
       do jc = j1, j2
         do l = c%start(i1 + c%nx*(jc - 1)), c%start(i2 + 1 + c%nx*(jc - 1)) - 1
@@ -324,108 +290,95 @@ contains
   end function fluid_far
 
   !> is_fluid for the node (i, j) of the slab's rows 0..nyl+1, which the mask covers.
-  pure logical function mask_fluid(ps, dom, i, j) result(fluid)
-    type(particles_t), intent(in) :: ps
+  pure logical function mask_fluid(lk, dom, i, j) result(fluid)
+    type(links_t), intent(in) :: lk
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: i, j
     fluid = i >= 1 .and. i <= dom%nx .and. &
             (dom%periodic_y .or. (dom%y0 + j >= 1 .and. dom%y0 + j <= dom%ny))
-    if (fluid) fluid = .not. ps%solid(i, j)
+    if (fluid) fluid = .not. lk%solid(i, j)
   end function mask_fluid
 
-  !> The boundary links of this slab without their q: fluid node x_f in rows 1..nyl whose
-  !! neighbour x_f + e_i lies inside a particle, ordered by particle, row, column, direction;
-  !! lff says whether x_f - e_i is a fluid node. Then the row-sum entries (one per particle and
-  !! row that holds links; particle k's are rfirst(k)..rlast(k), entry e's links
-  !! rlink(e)..rlink(e + 1) - 1) and the links by row (row_entries).
-  !!
-  !! A disk's links are those of the last search (kept_*) when its runs are the same and no
-  !! node within two of its runs' box (the nodes its search reads: the nodes beside its runs
-  !! and one beyond, for lff) changed in the mask. The mask changes only at nodes that some disk
-  !! covered then and not now or now and not then: in a row where a disk's run changed, between
-  !! its old and new ends; anywhere in the runs of a disk that came or went. Those nodes are
-  !! noted in blocks of BLOCK x BLOCK nodes.
-  subroutine search_links(ps, dom)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
+  module procedure search_links
     integer :: k, m, n, ne, n0, i1, i2, j1, j2, since
     integer :: room, room_e !! places in the arrays of the links, of the entries
     integer, allocatable :: was(:) !! the disk of the last search that disk k is, or 0
     logical, allocatable :: dirty(:, :), same(:), tl(:)
     logical :: kept
-    call place_for_nodes(ps, dom)
+    call place_for_nodes(lk, ps, dom)
     ! the runs the last search read: the present ones when no disk was placed since, those of
     ! the placement before (the refill's, after the move) when one was; else every disk is
     ! searched
-    since = ps%placements - ps%kept_placement
-    kept = ps%kept_n >= 0 .and. ps%kept_y0 == dom%y0 .and. ps%kept_nx == dom%nx .and. &
-           ps%kept_nyl == dom%nyl .and. since <= 1
+    since = lk%placements - lk%kept_placement
+    kept = lk%kept_n >= 0 .and. lk%kept_y0 == dom%y0 .and. lk%kept_nx == dom%nx .and. &
+           lk%kept_nyl == dom%nyl .and. since <= 1
     ! the links of the last search become the kept ones, their arrays take the new links
-    call swap(ps%lx, ps%kept_lx)
-    call swap(ps%ly, ps%kept_ly)
-    call swap(ps%ld, ps%kept_ld)
-    call swap(ps%lrow, ps%kept_lrow)
-    call swap(ps%rj, ps%kept_rj)
-    call swap(ps%rlink, ps%kept_rlink)
-    call swap(ps%rfirst, ps%kept_rfirst)
-    call swap(ps%rlast, ps%kept_rlast)
-    call move_alloc(ps%lff, tl)
-    call move_alloc(ps%kept_lff, ps%lff)
-    call move_alloc(tl, ps%kept_lff)
+    call swap(lk%lx, lk%kept_lx)
+    call swap(lk%ly, lk%kept_ly)
+    call swap(lk%ld, lk%kept_ld)
+    call swap(lk%lrow, lk%kept_lrow)
+    call swap(lk%rj, lk%kept_rj)
+    call swap(lk%rlink, lk%kept_rlink)
+    call swap(lk%rfirst, lk%kept_rfirst)
+    call swap(lk%rlast, lk%kept_rlast)
+    call move_alloc(lk%lff, tl)
+    call move_alloc(lk%kept_lff, lk%lff)
+    call move_alloc(tl, lk%kept_lff)
     ! the blocks of nodes where the mask may have changed, and the disks whose runs did not
     allocate (was(ps%n), same(ps%n), dirty(0:(dom%nx + 3 + BLOCK)/BLOCK, &
                                            0:(dom%nyl + 3 + BLOCK)/BLOCK))
     dirty = .false.
     was = 0
     same = .false.
-    if (kept) call kept_disks(ps, dom, since, was, same, dirty)
-    call fit_entries(ps, max(ps%n, 1), 0)
+    if (kept) call kept_disks(lk, ps, dom, since, was, same, dirty)
+    call fit_entries(lk, ps, max(ps%n, 1), 0)
     room = 0
     room_e = 0
-    ps%rfirst(1:ps%n) = 1
-    ps%rlast(1:ps%n) = 0
+    lk%rfirst(1:ps%n) = 1
+    lk%rlast(1:ps%n) = 0
     n = 0
     ne = 0
     do k = 1, ps%n
       ! room for every link of k, and the eight written for each node: at most 8 from each node
       ! beside its runs, which span no more than 2 r + 4 columns of each of its rows and the
       ! two beyond them; an entry of the row sums for each of those rows
-      m = n + 8*(ps%span_nj(k) + 2)*(int(min(2.0_wp*ps%p%r(k), 1.0e6_wp)) + 6)
+      m = n + 8*(lk%span_nj(k) + 2)*(int(min(2.0_wp*ps%p%r(k), 1.0e6_wp)) + 6)
       if (m > room) then
-        call fit_links(ps, m, n)
-        room = min(size(ps%lp), size(ps%lx), size(ps%ly), size(ps%ld), size(ps%lrow), &
-                   size(ps%lq), size(ps%lff))
+        call fit_links(lk, m, n)
+        room = min(size(lk%lp), size(lk%lx), size(lk%ly), size(lk%ld), size(lk%lrow), &
+                   size(lk%lq), size(lk%lff))
       end if
-      if (ne + ps%span_nj(k) + 3 > room_e) then
-        call fit_entries(ps, ne + ps%span_nj(k) + 3, ne)
-        room_e = min(size(ps%rk), size(ps%rj), size(ps%rlink) - 1, size(ps%rows, 2))
+      if (ne + lk%span_nj(k) + 3 > room_e) then
+        call fit_entries(lk, ps, ne + lk%span_nj(k) + 3, ne)
+        room_e = min(size(lk%rk), size(lk%rj), size(lk%rlink) - 1, size(lk%rows, 2))
       end if
       if (same(k)) then
-        call runs_box(ps%span(:, :, k), ps%span_j0(k), ps%span_nj(k), i1, i2, j1, j2)
+        call runs_box(lk%span(:, :, k), lk%span_j0(k), lk%span_nj(k), i1, i2, j1, j2)
         same(k) = .not. any(dirty(block_x(dom, i1 - 2):block_x(dom, i2 + 2), &
                                   block_y(dom, j1 - 2):block_y(dom, j2 + 2)))
       end if
       n0 = n
       if (same(k)) then
-        call take_kept(ps, k, was(k), n, ne)
+        call take_kept(lk, k, was(k), n, ne)
       else
-        call disk_links(ps, dom, k, n, ne)
+        call disk_links(lk, dom, k, n, ne)
       end if
-      ps%lp(n0 + 1:n) = k
+      lk%lp(n0 + 1:n) = k
     end do
-    ps%nlinks = n
-    ps%nrows = ne
-    ps%rlink(ne + 1) = n + 1
-    ps%searches = ps%searches + 1
-    ps%links_found = ps%links_found + n
-    call row_entries(ps, dom%nyl)
-    call keep_runs(ps, dom)
-  end subroutine search_links
+    lk%nlinks = n
+    lk%nrows = ne
+    lk%rlink(ne + 1) = n + 1
+    lk%searches = lk%searches + 1
+    lk%links_found = lk%links_found + n
+    call row_entries(lk, dom%nyl)
+    call keep_runs(lk, ps, dom)
+  end procedure search_links
 
   !> The disks of the last search that the present ones are (was, by id), those whose runs are
   !! the same (same), and the blocks of nodes where the mask changed since (dirty): see
   !! search_links. since: the placements since the last search, 0 or 1.
-  subroutine kept_disks(ps, dom, since, was, same, dirty)
+  subroutine kept_disks(lk, ps, dom, since, was, same, dirty)
+    type(links_t), intent(in) :: lk
     type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: since
@@ -437,33 +390,33 @@ contains
     same = .false.
     if (since == 0) then
       ! the same placement: every disk has the runs it had, the mask is the same
-      do k = 1, min(ps%n, ps%kept_n)
+      do k = 1, min(ps%n, lk%kept_n)
         was(k) = k
       end do
       same = was > 0
     else
       m = 1
       do k = 1, ps%n
-        do while (m <= ps%kept_n)
-          if (ps%kept_id(m) >= ps%p%id(k)) exit
-          call note(ps%span_old(:, :, m), ps%span_j0_old(m), ps%span_nj_old(m))
+        do while (m <= lk%kept_n)
+          if (lk%kept_id(m) >= ps%p%id(k)) exit
+          call note(lk%span_old(:, :, m), lk%span_j0_old(m), lk%span_nj_old(m))
           m = m + 1
         end do
-        if (m <= ps%kept_n) then
-          if (ps%kept_id(m) == ps%p%id(k)) then
+        if (m <= lk%kept_n) then
+          if (lk%kept_id(m) == ps%p%id(k)) then
             was(k) = m
-            same(k) = ps%span_j0_old(m) == ps%span_j0(k) .and. &
-                      ps%span_nj_old(m) == ps%span_nj(k)
-            if (same(k)) same(k) = all(ps%span_old(:, 1:ps%span_nj(k), m) == &
-                                       ps%span(:, 1:ps%span_nj(k), k))
+            same(k) = lk%span_j0_old(m) == lk%span_j0(k) .and. &
+                      lk%span_nj_old(m) == lk%span_nj(k)
+            if (same(k)) same(k) = all(lk%span_old(:, 1:lk%span_nj(k), m) == &
+                                       lk%span(:, 1:lk%span_nj(k), k))
             if (.not. same(k)) call note_change(m, k)
             m = m + 1
           end if
         end if
-        if (was(k) == 0) call note(ps%span(:, :, k), ps%span_j0(k), ps%span_nj(k))
+        if (was(k) == 0) call note(lk%span(:, :, k), lk%span_j0(k), lk%span_nj(k))
       end do
-      do m = m, ps%kept_n
-        call note(ps%span_old(:, :, m), ps%span_j0_old(m), ps%span_nj_old(m))
+      do m = m, lk%kept_n
+        call note(lk%span_old(:, :, m), lk%span_j0_old(m), lk%span_nj_old(m))
       end do
     end if
   contains
@@ -480,15 +433,15 @@ contains
     subroutine note_change(m, k)
       integer, intent(in) :: m, k
       integer :: j, ol, oh, nl, nh
-      do j = min(ps%span_j0_old(m), ps%span_j0(k)), &
-        max(ps%span_j0_old(m) + ps%span_nj_old(m), ps%span_j0(k) + ps%span_nj(k)) - 1
+      do j = min(lk%span_j0_old(m), lk%span_j0(k)), &
+        max(lk%span_j0_old(m) + lk%span_nj_old(m), lk%span_j0(k) + lk%span_nj(k)) - 1
         ol = NO_LO
         oh = NO_HI
-        if (j >= ps%span_j0_old(m) .and. j < ps%span_j0_old(m) + ps%span_nj_old(m)) then
-          ol = ps%span_old(1, j - ps%span_j0_old(m) + 1, m)
-          oh = ps%span_old(2, j - ps%span_j0_old(m) + 1, m)
+        if (j >= lk%span_j0_old(m) .and. j < lk%span_j0_old(m) + lk%span_nj_old(m)) then
+          ol = lk%span_old(1, j - lk%span_j0_old(m) + 1, m)
+          oh = lk%span_old(2, j - lk%span_j0_old(m) + 1, m)
         end if
-        call span_of(ps, k, j, nl, nh)
+        call span_of(lk, k, j, nl, nh)
         if (ol > oh .or. nl > nh .or. oh < nl .or. nh < ol) then
           call mark(ol, oh, j)
           call mark(nl, nh, j)
@@ -544,46 +497,47 @@ contains
 
   !> Room for m links in the arrays of the links, the first keep kept (twice as long as before
   !! when they fill, so that they keep their size from step to step).
-  subroutine fit_links(ps, m, keep)
-    type(particles_t), intent(inout) :: ps
+  subroutine fit_links(lk, m, keep)
+    type(links_t), intent(inout) :: lk
     integer, intent(in) :: m, keep
     integer :: c
     logical, allocatable :: tl(:)
     c = max(m, 16)
-    call fit_int(ps%lp, c, keep)
-    call fit_int(ps%lx, c, keep)
-    call fit_int(ps%ly, c, keep)
-    call fit_int(ps%ld, c, keep)
-    call fit_int(ps%lrow, c, keep)
-    if (.not. allocated(ps%lq)) allocate (ps%lq(0))
-    if (size(ps%lq) < c) then
+    call fit_int(lk%lp, c, keep)
+    call fit_int(lk%lx, c, keep)
+    call fit_int(lk%ly, c, keep)
+    call fit_int(lk%ld, c, keep)
+    call fit_int(lk%lrow, c, keep)
+    if (.not. allocated(lk%lq)) allocate (lk%lq(0))
+    if (size(lk%lq) < c) then
       ! (q is computed after the search: nothing to keep)
-      deallocate (ps%lq)
-      allocate (ps%lq(max(c, 2*size(ps%lp))))
+      deallocate (lk%lq)
+      allocate (lk%lq(max(c, 2*size(lk%lp))))
     end if
-    if (.not. allocated(ps%lff)) allocate (ps%lff(0))
-    if (size(ps%lff) < c) then
-      allocate (tl(max(c, 2*size(ps%lff))))
-      tl(1:keep) = ps%lff(1:keep)
-      call move_alloc(tl, ps%lff)
+    if (.not. allocated(lk%lff)) allocate (lk%lff(0))
+    if (size(lk%lff) < c) then
+      allocate (tl(max(c, 2*size(lk%lff))))
+      tl(1:keep) = lk%lff(1:keep)
+      call move_alloc(tl, lk%lff)
     end if
   end subroutine fit_links
 
   !> Room for m row-sum entries and the particles' first and last entries, the first keep
   !! entries kept.
-  subroutine fit_entries(ps, m, keep)
-    type(particles_t), intent(inout) :: ps
+  subroutine fit_entries(lk, ps, m, keep)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
     integer, intent(in) :: m, keep
     real(wp), allocatable :: tr(:, :)
-    call fit_int(ps%rk, m, keep)
-    call fit_int(ps%rj, m, keep)
-    call fit_int(ps%rlink, m + 1, keep)
-    if (size(ps%rows, 2) < size(ps%rk)) then
-      allocate (tr(3, size(ps%rk)))
-      call move_alloc(tr, ps%rows)
+    call fit_int(lk%rk, m, keep)
+    call fit_int(lk%rj, m, keep)
+    call fit_int(lk%rlink, m + 1, keep)
+    if (size(lk%rows, 2) < size(lk%rk)) then
+      allocate (tr(3, size(lk%rk)))
+      call move_alloc(tr, lk%rows)
     end if
-    call fit_int(ps%rfirst, ps%n, ps%n)
-    call fit_int(ps%rlast, ps%n, ps%n)
+    call fit_int(lk%rfirst, ps%n, ps%n)
+    call fit_int(lk%rlast, ps%n, ps%n)
   end subroutine fit_entries
 
   !> At least m places in a, twice as many as before when it grows, the first keep kept.
@@ -599,26 +553,26 @@ contains
   end subroutine fit_int
 
   !> Append the links of disk k that the last search found for it as disk m, and their entries.
-  subroutine take_kept(ps, k, m, n, ne)
-    type(particles_t), intent(inout) :: ps
+  subroutine take_kept(lk, k, m, n, ne)
+    type(links_t), intent(inout) :: lk
     integer, intent(in) :: k, m
     integer, intent(inout) :: n, ne
     integer :: e1, e2, f1, f2, c
-    e1 = ps%kept_rfirst(m)
-    e2 = ps%kept_rlast(m)
+    e1 = lk%kept_rfirst(m)
+    e2 = lk%kept_rlast(m)
     if (e1 > e2) return
-    f1 = ps%kept_rlink(e1)
-    f2 = ps%kept_rlink(e2 + 1) - 1
+    f1 = lk%kept_rlink(e1)
+    f2 = lk%kept_rlink(e2 + 1) - 1
     c = f2 - f1 + 1
-    call copy_links(c, ne + 1 - e1, ps%kept_lx(f1:f2), ps%kept_ly(f1:f2), ps%kept_ld(f1:f2), &
-                    ps%kept_lff(f1:f2), ps%kept_lrow(f1:f2), ps%lx(n + 1:n + c), &
-                    ps%ly(n + 1:n + c), ps%ld(n + 1:n + c), ps%lff(n + 1:n + c), &
-                    ps%lrow(n + 1:n + c))
-    ps%rk(ne + 1:ne + e2 - e1 + 1) = k
-    ps%rj(ne + 1:ne + e2 - e1 + 1) = ps%kept_rj(e1:e2)
-    ps%rlink(ne + 1:ne + e2 - e1 + 1) = ps%kept_rlink(e1:e2) + (n + 1 - f1)
-    ps%rfirst(k) = ne + 1
-    ps%rlast(k) = ne + e2 - e1 + 1
+    call copy_links(c, ne + 1 - e1, lk%kept_lx(f1:f2), lk%kept_ly(f1:f2), lk%kept_ld(f1:f2), &
+                    lk%kept_lff(f1:f2), lk%kept_lrow(f1:f2), lk%lx(n + 1:n + c), &
+                    lk%ly(n + 1:n + c), lk%ld(n + 1:n + c), lk%lff(n + 1:n + c), &
+                    lk%lrow(n + 1:n + c))
+    lk%rk(ne + 1:ne + e2 - e1 + 1) = k
+    lk%rj(ne + 1:ne + e2 - e1 + 1) = lk%kept_rj(e1:e2)
+    lk%rlink(ne + 1:ne + e2 - e1 + 1) = lk%kept_rlink(e1:e2) + (n + 1 - f1)
+    lk%rfirst(k) = ne + 1
+    lk%rlast(k) = ne + e2 - e1 + 1
     n = n + c
     ne = ne + e2 - e1 + 1
   end subroutine take_kept
@@ -642,16 +596,17 @@ contains
 
   !> Note what the links were found from for the next search: the disks (by id), the placement
   !! of their runs and the slab.
-  subroutine keep_runs(ps, dom)
-    type(particles_t), intent(inout) :: ps
+  subroutine keep_runs(lk, ps, dom)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
-    call fit_int(ps%kept_id, ps%n, 0)
-    ps%kept_id(1:ps%n) = ps%p%id(1:ps%n)
-    ps%kept_n = ps%n
-    ps%kept_placement = ps%placements
-    ps%kept_y0 = dom%y0
-    ps%kept_nx = dom%nx
-    ps%kept_nyl = dom%nyl
+    call fit_int(lk%kept_id, ps%n, 0)
+    lk%kept_id(1:ps%n) = ps%p%id(1:ps%n)
+    lk%kept_n = ps%n
+    lk%kept_placement = lk%placements
+    lk%kept_y0 = dom%y0
+    lk%kept_nx = dom%nx
+    lk%kept_nyl = dom%nyl
   end subroutine keep_runs
 
   !> Append the boundary links of disk k after the n found (the arrays hold room for them and
@@ -664,22 +619,22 @@ contains
   !! inside k is whether its column is in the run of its row, which is the test itself (and the
   !! mask, built from the same runs, holds it). The links come out in the order of a scan of
   !! the whole box: row, column, direction.
-  subroutine disk_links(ps, dom, k, n, ne)
-    type(particles_t), intent(inout) :: ps
+  subroutine disk_links(lk, dom, k, n, ne)
+    type(links_t), intent(inout) :: lk
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: k
     integer, intent(inout) :: n, ne
     integer :: j, l, m, n0, nr, lo(-1:1), hi(-1:1), a(8), b(8)
     n0 = n
-    associate (lx => ps%lx, ly => ps%ly, ld => ps%ld, j0 => ps%span_j0(k), &
-               nj => ps%span_nj(k))
+    associate (lx => lk%lx, ly => lk%ly, ld => lk%ld, j0 => lk%span_j0(k), &
+               nj => lk%span_nj(k))
       do j = max(1, j0 - 1), min(dom%nyl, j0 + nj)
         do m = -1, 1
           lo(m) = NO_LO
           hi(m) = NO_HI
           if (j + m >= j0 .and. j + m < j0 + nj) then
-            lo(m) = ps%span(1, j + m - j0 + 1, k)
-            hi(m) = ps%span(2, j + m - j0 + 1, k)
+            lo(m) = lk%span(1, j + m - j0 + 1, k)
+            hi(m) = lk%span(2, j + m - j0 + 1, k)
           end if
         end do
         ! the neighbour x_f + e_d of node i lies inside k when a(d) <= i <= b(d)
@@ -689,20 +644,20 @@ contains
         ! (a node outside the channel is not fluid)
         if (dom%periodic_y .or. (dom%y0 + j >= 1 .and. dom%y0 + j <= dom%ny)) &
           call row_links(max(1, minval(lo) - 1), min(dom%nx, maxval(hi) + 1), lo(0), hi(0), &
-                         a, b, ps%solid(:, j), lx, ld, n)
+                         a, b, lk%solid(:, j), lx, ld, n)
         if (n > nr) then
           ne = ne + 1
-          if (n0 == nr) ps%rfirst(k) = ne
-          ps%rlast(k) = ne
-          ps%rk(ne) = k
-          ps%rj(ne) = j
-          ps%rlink(ne) = nr + 1
+          if (n0 == nr) lk%rfirst(k) = ne
+          lk%rlast(k) = ne
+          lk%rk(ne) = k
+          lk%rj(ne) = j
+          lk%rlink(ne) = nr + 1
           ly(nr + 1:n) = j
-          ps%lrow(nr + 1:n) = ne
+          lk%lrow(nr + 1:n) = ne
         end if
       end do
       do l = n0 + 1, n
-        ps%lff(l) = mask_fluid(ps, dom, lx(l) - ex(ld(l)), ly(l) - ey(ld(l)))
+        lk%lff(l) = mask_fluid(lk, dom, lx(l) - ex(ld(l)), ly(l) - ey(ld(l)))
       end do
     end associate
   end subroutine disk_links
@@ -736,26 +691,26 @@ contains
 
   !> The row sums of E7 restarted, and the links by row: lorder(lstart(j)..lstart(j + 1) - 1)
   !! are the links of row j in their order.
-  subroutine row_entries(ps, nyl)
-    type(particles_t), intent(inout) :: ps
+  subroutine row_entries(lk, nyl)
+    type(links_t), intent(inout) :: lk
     integer, intent(in) :: nyl !! rows of the slab
     integer :: l, k, n, m
-    ps%rows(:, 1:ps%nrows) = 0.0_wp
-    if (.not. allocated(ps%lstart)) allocate (ps%lstart(0))
-    if (size(ps%lstart) /= nyl + 1) then
-      deallocate (ps%lstart)
-      allocate (ps%lstart(nyl + 1))
+    lk%rows(:, 1:lk%nrows) = 0.0_wp
+    if (.not. allocated(lk%lstart)) allocate (lk%lstart(0))
+    if (size(lk%lstart) /= nyl + 1) then
+      deallocate (lk%lstart)
+      allocate (lk%lstart(nyl + 1))
     end if
-    if (.not. allocated(ps%lorder)) allocate (ps%lorder(0))
-    if (size(ps%lorder) < ps%nlinks) then
-      deallocate (ps%lorder)
-      allocate (ps%lorder(max(ps%nlinks, 2*size(ps%lp))))
+    if (.not. allocated(lk%lorder)) allocate (lk%lorder(0))
+    if (size(lk%lorder) < lk%nlinks) then
+      deallocate (lk%lorder)
+      allocate (lk%lorder(max(lk%nlinks, 2*size(lk%lp))))
     end if
     ! a stable counting sort, taken entry by entry: the links of an entry are a run of one row,
     ! so each entry adds its run to its row's count and then copies it in one piece
-    associate (lstart => ps%lstart, lorder => ps%lorder, rj => ps%rj, first => ps%rlink)
+    associate (lstart => lk%lstart, lorder => lk%lorder, rj => lk%rj, first => lk%rlink)
       lstart = 0
-      do n = 1, ps%nrows
+      do n = 1, lk%nrows
         lstart(rj(n)) = lstart(rj(n)) + (first(n + 1) - first(n))
       end do
       m = 1
@@ -764,7 +719,7 @@ contains
         lstart(k) = m
         m = m + n
       end do
-      do n = 1, ps%nrows
+      do n = 1, lk%nrows
         k = rj(n)
         m = lstart(k) - first(n)
         do l = first(n), first(n + 1) - 1
@@ -777,4 +732,4 @@ contains
       lstart(1) = 1
     end associate
   end subroutine row_entries
-end module dkt_link_search
+end submodule dkt_links_search

@@ -5,7 +5,7 @@
 !>
 !> Interior nodes (coupling.interior): 'solid', they are not fluid: after a sweep they hold
 !> the equilibrium at the local particle velocity (written when the lattice is read:
-!> particles_interior_after_move), and a node the particle uncovers is refilled
+!> links_interior_after_move), and a node the particle uncovers is refilled
 !> with the equilibrium at the wall velocity and the mean density of its fluid neighbours.
 !> 'fluid', they hold fluid that streams and collides like the rest, bounced back from the inside
 !> of the surface on the interior links; nothing is reset or refilled.
@@ -15,7 +15,7 @@
 !> and the density sums are point-wise physics, computed in 8 bytes. The work is that of the
 !> links and nodes of the disks a slab holds: nothing here loops over rows without links or over
 !> particles the slab does not hold.
-module dkt_particle_links
+submodule (dkt_links) dkt_links_bounce
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
@@ -25,15 +25,9 @@ module dkt_particle_links
   use dkt_half, only: half_encode, half_decode
   use dkt_errors, only: internal_error
   use dkt_text, only: itoa
-  use dkt_particles, only: particles_t, inner_link_t
-  use dkt_link_search, only: place_for_nodes, disk_spans, old_spans_of, is_fluid, search_links
   use dkt_link_geometry, only: link_fraction, link_fractions
   use dkt_particle_state, only: particle_state_t
   implicit none
-  private
-  public :: particles_find_links, particles_bounce, particles_interior, particles_inner_save, &
-            particles_inner_write, particles_solid_field, particles_refill, &
-            particles_interior_after_move
 
   !> One disk copied out of the state (disk): what the loops over its nodes read, in scalars
   type :: disk_t
@@ -87,45 +81,39 @@ contains
     rho = sum(lattice_get_node(f, i, j))
   end function node_density
 
-  !> Find the boundary links of this slab: fluid node x_f in rows 1..nyl whose neighbour
-  !! x_f + e_i lies inside a particle; q in (0, 1] is the fraction of the link in the fluid
-  !! (exact intersection of the segment with the circle), computed anew for every link (the
-  !! centres move). The links (search_links) are ordered by particle, row, column, direction;
-  !! the interior links (coupling.interior = 'fluid') likewise.
-  subroutine particles_find_links(ps, dom)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
+  module procedure links_find
     integer :: k
-    call search_links(ps, dom)
-    call link_fractions(ps%nlinks, ps%lp, ps%lx, ps%ly, ps%ld, dom%y0, ps%p%x, ps%p%y, ps%p%r, &
-                        ps%lq)
-    ps%ninner = 0
-    if (.not. ps%fluid_interior) return
+    call search_links(lk, ps, dom)
+    call link_fractions(lk%nlinks, lk%lp, lk%lx, lk%ly, lk%ld, dom%y0, ps%p%x, ps%p%y, ps%p%r, &
+                        lk%lq)
+    lk%ninner = 0
+    if (.not. lk%fluid_interior) return
     do k = 1, ps%n
-      call inner_links_of(ps, dom, k)
+      call inner_links_of(lk, ps, dom, k)
     end do
-  end subroutine particles_find_links
+  end procedure links_find
 
   !> The interior links of disk k (coupling.interior = 'fluid'), in the order of its nodes (row,
   !! column): those of its nodes within 1.5 of the surface (a node deeper has every neighbour
   !! inside k too), each node of k's runs being a node inside k (and so not fluid).
-  subroutine inner_links_of(ps, dom, k)
-    type(particles_t), intent(inout) :: ps
+  subroutine inner_links_of(lk, ps, dom, k)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: k
     integer :: j, i, lo, hi
     real(wp) :: px, py, dist2, near2, deep2
     near2 = (ps%p%r(k) + 1.5_wp)**2
     deep2 = max(ps%p%r(k) - 1.5_wp, 0.0_wp)**2
-    do j = max(1, ps%span_j0(k)), min(dom%nyl, ps%span_j0(k) + ps%span_nj(k) - 1)
-      lo = ps%span(1, j - ps%span_j0(k) + 1, k)
-      hi = ps%span(2, j - ps%span_j0(k) + 1, k)
+    do j = max(1, lk%span_j0(k)), min(dom%nyl, lk%span_j0(k) + lk%span_nj(k) - 1)
+      lo = lk%span(1, j - lk%span_j0(k) + 1, k)
+      hi = lk%span(2, j - lk%span_j0(k) + 1, k)
       py = dom%y0 + j - 0.5_wp
       do i = max(1, lo), min(dom%nx, hi)
         px = i - 0.5_wp
         dist2 = (px - ps%p%x(k))**2 + (py - ps%p%y(k))**2
         if (dist2 >= near2 .or. dist2 < deep2) cycle
-        call add_inner_links(ps, dom, k, i, j)
+        call add_inner_links(lk, ps, dom, k, i, j)
       end do
     end do
   end subroutine inner_links_of
@@ -135,8 +123,9 @@ contains
   !! lattice node (a fluid node, a halo node or a node of another particle; not beyond a side
   !! or a closed end). q is computed from x_f as for the boundary link (x_f, i), so that both
   !! sides of the link take the wall point, and u_w there, with the same bits.
-  subroutine add_inner_links(ps, dom, k, i, j)
-    type(particles_t), intent(inout) :: ps
+  subroutine add_inner_links(lk, ps, dom, k, i, j)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: k, i, j
     type(inner_link_t), allocatable :: grown(:)
@@ -145,127 +134,101 @@ contains
       fi = i - ex(d)
       fjg = dom%y0 + j - ey(d)
       ! x_f inside k: in k's run of its row (rows 0..nyl+1, columns 0..nx+1)
-      m = j - ey(d) - ps%span_j0(k) + 1
-      if (m >= 1 .and. m <= ps%span_nj(k)) then
-        if (fi >= ps%span(1, m, k) .and. fi <= ps%span(2, m, k)) cycle
+      m = j - ey(d) - lk%span_j0(k) + 1
+      if (m >= 1 .and. m <= lk%span_nj(k)) then
+        if (fi >= lk%span(1, m, k) .and. fi <= lk%span(2, m, k)) cycle
       end if
       if (fi < 1 .or. fi > dom%nx) cycle
       if (.not. dom%periodic_y .and. (fjg < 1 .or. fjg > dom%ny)) cycle
-      if (ps%ninner == size(ps%inner)) then
-        allocate (grown(max(64, 2*ps%ninner)))
-        grown(1:ps%ninner) = ps%inner(1:ps%ninner)
-        call move_alloc(grown, ps%inner)
+      if (lk%ninner == size(lk%inner)) then
+        allocate (grown(max(64, 2*lk%ninner)))
+        grown(1:lk%ninner) = lk%inner(1:lk%ninner)
+        call move_alloc(grown, lk%inner)
       end if
-      ps%ninner = ps%ninner + 1
-      ps%inner(ps%ninner) = inner_link_t(k, i, j, d, &
+      lk%ninner = lk%ninner + 1
+      lk%inner(lk%ninner) = inner_link_t(k, i, j, d, &
                                          link_fraction(ps%p%x(k), ps%p%y(k), ps%p%r(k), &
                                                        fi - 0.5_wp, fjg - 0.5_wp, d), &
-                                         is_fluid(ps, dom, fi, fjg), 0.0_wp)
+                                         is_fluid(lk, ps, dom, fi, fjg), 0.0_wp)
     end do
   end subroutine add_inner_links
 
-  !> Interior side of the links (coupling.interior = 'fluid'), first half: with the halo rows
-  !! complete and before any boundary link is bounced, save for each interior link (x_s, i)
-  !! the population the interior node receives, half-way bounce-back from the inside,
-  !!     f_i(x_s, t+1) = f_ibar*(x_s) - W,
-  !! W the moving-wall term of the boundary link (x_f, i) (rho the density at x_f it uses, 1
-  !! when x_f is not a fluid node). The densities of the halo rows come from their owners, so
-  !! a link across a slab face uses the bits its boundary link uses. Every rank calls it.
-  subroutine particles_inner_save(ps, dom, f)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(in) :: f
+  module procedure links_inner_save
     integer :: l, i, j, d, fi, fj
     real(wp) :: rho, xw, yw, uwx, uwy, wall
     do i = 1, dom%nx
-      ps%rho_first(i) = node_density(f, i, 1)
-      ps%rho_last(i) = node_density(f, i, dom%nyl)
+      lk%rho_first(i) = node_density(f, i, 1)
+      lk%rho_last(i) = node_density(f, i, dom%nyl)
     end do
-    call domain_edge_rows(dom, ps%rho_first, ps%rho_last, ps%rho_below, ps%rho_above)
-    do l = 1, ps%ninner
-      i = ps%inner(l)%i
-      j = ps%inner(l)%j
-      d = ps%inner(l)%d
+    call domain_edge_rows(dom, lk%rho_first, lk%rho_last, lk%rho_below, lk%rho_above)
+    do l = 1, lk%ninner
+      i = lk%inner(l)%i
+      j = lk%inner(l)%j
+      d = lk%inner(l)%d
       fi = i - ex(d)
       fj = j - ey(d)
       rho = 1.0_wp
-      if (ps%inner(l)%ff) then
+      if (lk%inner(l)%ff) then
         if (fj == 0) then
-          rho = ps%rho_below(fi)
+          rho = lk%rho_below(fi)
         else if (fj == dom%nyl + 1) then
-          rho = ps%rho_above(fi)
+          rho = lk%rho_above(fi)
         else
           rho = node_density(f, fi, fj)
         end if
       end if
-      call wall_of_link(disk(ps%p, ps%inner(l)%k), fi, dom%y0 + fj, d, ps%inner(l)%q, rho, xw, yw, &
+      call wall_of_link(disk(ps%p, lk%inner(l)%k), fi, dom%y0 + fj, d, lk%inner(l)%q, rho, xw, yw, &
                         uwx, uwy, wall)
-      ps%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
+      lk%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
     end do
-  end subroutine particles_inner_save
+  end procedure links_inner_save
 
-  !> Interior side, second half: after every boundary link has been bounced (E6 and E7 read
-  !! f_i*(x_f) and the density at x_f), write each saved value into slot i of x_f, which only
-  !! x_s pulls in the sweep.
-  subroutine particles_inner_write(ps, f)
-    type(particles_t), intent(in) :: ps
-    type(lattice_t), intent(inout) :: f
+  module procedure links_inner_write
     integer :: l
-    do l = 1, ps%ninner
-      associate (a => ps%inner(l))
+    do l = 1, lk%ninner
+      associate (a => lk%inner(l))
         call lattice_set(f, a%i - ex(a%d), a%j - ey(a%d), a%d, a%val)
       end associate
     end do
-  end subroutine particles_inner_write
+  end procedure links_inner_write
 
-  !> E6 and E7 on the links whose fluid node lies in rows j1..j2: write the bounced population
-  !! f_ibar(x_f, t+1) into the slot of the solid node that x_f pulls it from, and add the link's
-  !! momentum exchange to the sums of rows j1..j2 (restarted here). f holds post-collision
-  !! populations, with the ghosts complete and, when j1..j2 touches row 1 or nyl, the halo rows
-  !! too. A link reads only fluid nodes (x_f, and x_f - e_i for Yu/BFL) and writes only a solid
-  !! slot that no other link reads and only x_f pulls, so links of rows 2..nyl-1 neither read
-  !! nor write a halo row, and the links can be taken in row groups while the halo travels.
-  subroutine particles_bounce(ps, dom, f, j1, j2)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(inout) :: f
-    integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
+  module procedure links_bounce
     real(wp) :: no_d(1)
     real(sp) :: no_s(1)
     integer(int16) :: no_h(1)
     integer :: l, m1, n
     if (j2 < j1) return
-    do l = 1, ps%nrows
-      if (ps%rj(l) >= j1 .and. ps%rj(l) <= j2) ps%rows(:, l) = 0.0_wp
+    do l = 1, lk%nrows
+      if (lk%rj(l) >= j1 .and. lk%rj(l) <= j2) lk%rows(:, l) = 0.0_wp
     end do
-    m1 = ps%lstart(max(j1, 1))
-    n = ps%lstart(min(j2, dom%nyl) + 1) - m1
+    m1 = lk%lstart(max(j1, 1))
+    n = lk%lstart(min(j2, dom%nyl) + 1) - m1
     if (n <= 0) return
-    select case (ps%scheme)
+    select case (lk%scheme)
     case (BB_YU, BB_BFL, BB_HALFWAY)
     case default
-      call internal_error('particles_bounce: bounce-back code '//itoa(ps%scheme))
+      call internal_error('links_bounce: bounce-back code '//itoa(lk%scheme))
     end select
-    ! the links row by row (ps%lorder), each row's in their order (particle, column,
+    ! the links row by row (lk%lorder), each row's in their order (particle, column,
     ! direction): the lattice is read and written along its rows, and each row sum still adds
     ! its links in their order. A link reads only fluid nodes and writes only a solid slot that
     ! no other link reads, so each link can write its result as soon as it has it. The loop
     ! reads and writes the stored array of the lattice's storage; the other one is a stand-in
     ! that it never touches.
     if (f%half) then
-      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), no_d, &
-                        no_s, f%h, size(f%h, 1), size(f%h, 2), .false., .false., .true., ps%lp, &
-                        ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+      call bounce_links(ps%p, lk%scheme, lk%galilean, dom%y0, lk%lorder(m1:m1 + n - 1), no_d, &
+                        no_s, f%h, size(f%h, 1), size(f%h, 2), .false., .false., .true., lk%lp, &
+                        lk%lx, lk%ly, lk%ld, lk%lq, lk%lff, lk%lrow, lk%rows)
     else if (.not. f%single) then
-      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), f%d, &
+      call bounce_links(ps%p, lk%scheme, lk%galilean, dom%y0, lk%lorder(m1:m1 + n - 1), f%d, &
                         no_s, no_h, size(f%d, 1), size(f%d, 2), .false., .false., .false., &
-                        ps%lp, ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+                        lk%lp, lk%lx, lk%ly, lk%ld, lk%lq, lk%lff, lk%lrow, lk%rows)
     else
-      call bounce_links(ps%p, ps%scheme, ps%galilean, dom%y0, ps%lorder(m1:m1 + n - 1), no_d, &
+      call bounce_links(ps%p, lk%scheme, lk%galilean, dom%y0, lk%lorder(m1:m1 + n - 1), no_d, &
                         f%s, no_h, size(f%s, 1), size(f%s, 2), .true., f%shifted, .false., &
-                        ps%lp, ps%lx, ps%ly, ps%ld, ps%lq, ps%lff, ps%lrow, ps%rows)
+                        lk%lp, lk%lx, lk%ly, lk%ld, lk%lq, lk%lff, lk%lrow, lk%rows)
     end if
-  end subroutine particles_bounce
+  end procedure links_bounce
 
   !> Where a link along e_i reads and writes, as offsets from population 0 of its fluid node
   !! x_f in a lattice f(0:nxp-1, 0:ny-1, 0:8) taken as one array (f(x, j, i) is element
@@ -283,7 +246,7 @@ contains
     end do
   end subroutine link_offsets
 
-  !> particles_bounce on the links order(:), on the populations as the lattice stores them
+  !> links_bounce on the links order(:), on the populations as the lattice stores them
   !! (dkt_store), f(0:nxp-1, 0:ny-1, 0:8) taken as one array: fd in 8 bytes, fs in 4
   !! (single) holding f_i - w_i (shifted) or f_i, or fh in 16-bit codes of f_i - w_i (half).
   !! Each value is read and written as
@@ -428,32 +391,16 @@ contains
     end do
   end subroutine bounce_links
 
-  !> After the sweep: interior nodes get the equilibrium at the local particle velocity (they
-  !! are not fluid; this keeps them finite and ready for refilling).
-  subroutine particles_interior(ps, dom, f)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(inout) :: f
-    call reset_disks(ps%p, ps%n, dom, f, ps%nodes_reset)
-    ps%resets = ps%resets + 1
-  end subroutine particles_interior
+  module procedure links_interior
+    call reset_disks(ps%p, ps%n, dom, f, lk%nodes_reset)
+    lk%resets = lk%resets + 1
+  end procedure links_interior
 
-  !> particles_interior of the last step, done after its move and refill: the disks held before
-  !! the move (ps%old) and their velocities then, as particles_interior took them, but not the
-  !! nodes the refill rewrote (inside an old disk and outside every new one, no longer in the
-  !! mask). The lattice is then what particles_interior before the move and the refill after
-  !! it leave. No fluid node and no link reads an interior node (a fluid node pulls from a solid
-  !! one only through a link, whose bounce-back overwrites the slot first; the refill and the
-  !! density sums read fluid nodes only), so a step needs this only when the lattice is read
-  !! whole: for output, a guard, a checkpoint (docs/performance.md).
-  subroutine particles_interior_after_move(ps, dom, f)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(inout) :: f
-    call place_for_nodes(ps, dom)
-    call reset_disks(ps%old, ps%nold, dom, f, ps%nodes_reset, ps%solid)
-    ps%resets = ps%resets + 1
-  end subroutine particles_interior_after_move
+  module procedure links_interior_after_move
+    call place_for_nodes(lk, ps, dom)
+    call reset_disks(ps%old, ps%nold, dom, f, lk%nodes_reset, lk%solid)
+    lk%resets = lk%resets + 1
+  end procedure links_interior_after_move
 
   !> The equilibrium at density 1 and the rigid-body velocity of disk k of s at every node
   !! inside it, disk after disk (the later disk's where two overlap); with `solid` only at the
@@ -488,22 +435,14 @@ contains
     end do
   end subroutine reset_disks
 
-  !> Nodes inside a particle's old disk (ps%old, the disks held before the move) and outside
-  !! every new one become fluid: equilibrium at the wall velocity there with the mean density of
-  !! their fluid neighbours. The particles are taken in id order, as one rank would take them; a
-  !! particle held before and not now, or now and not before, is beyond the reach of this slab's
-  !! rows in one of the two states and so uncovers none of its nodes. The nodes inside a disk
-  !! are its runs (place_for_nodes): those of the old disk are kept from the placement before
-  !! the move when it placed the same disk, and found again otherwise.
-  subroutine particles_refill(ps, dom, f)
-    type(particles_t), intent(inout) :: ps
-    type(domain_t), intent(in) :: dom
-    type(lattice_t), intent(inout) :: f
+  module procedure links_refill
     integer :: k, m, i, j, jg, d, nf, oj0, onj, lo, hi, nlo, nhi
     integer, allocatable :: found(:, :)
     real(wp) :: px, py, rho, ux, uy
     type(disk_t) :: po, pk
-    call place_for_nodes(ps, dom)
+    ! interior fluid (coupling.interior = 'fluid'): an uncovered node already holds fluid
+    if (lk%fluid_interior) return
+    call place_for_nodes(lk, ps, dom)
     m = 1
     do k = 1, ps%n
       do while (m <= ps%nold)
@@ -521,10 +460,10 @@ contains
         if (size(found, 2) < onj) deallocate (found)
       end if
       if (.not. allocated(found)) allocate (found(2, onj))
-      if (old_spans_of(ps, dom, m, po%x, po%y, po%r)) then
-        oj0 = ps%span_j0_old(m)
-        onj = ps%span_nj_old(m)
-        found(:, 1:onj) = ps%span_old(:, 1:onj, m)
+      if (old_spans_of(lk, dom, m, po%x, po%y, po%r)) then
+        oj0 = lk%span_j0_old(m)
+        onj = lk%span_nj_old(m)
+        found(:, 1:onj) = lk%span_old(:, 1:onj, m)
       else
         call disk_spans(po%x, po%y, po%r, dom, oj0, onj, found)
       end if
@@ -534,9 +473,9 @@ contains
         ! the run of the new disk in this row (none: nlo > nhi)
         nlo = 1
         nhi = 0
-        if (j >= ps%span_j0(k) .and. j < ps%span_j0(k) + ps%span_nj(k)) then
-          nlo = ps%span(1, j - ps%span_j0(k) + 1, k)
-          nhi = ps%span(2, j - ps%span_j0(k) + 1, k)
+        if (j >= lk%span_j0(k) .and. j < lk%span_j0(k) + lk%span_nj(k)) then
+          nlo = lk%span(1, j - lk%span_j0(k) + 1, k)
+          nhi = lk%span(2, j - lk%span_j0(k) + 1, k)
         end if
         jg = dom%y0 + j
         py = jg - 0.5_wp
@@ -548,7 +487,7 @@ contains
             cycle
           end if
           px = i - 0.5_wp
-          if (is_fluid(ps, dom, i, jg)) then
+          if (is_fluid(lk, ps, dom, i, jg)) then
             ! mean density of the fluid neighbours in the same row: a row is never split
             ! between ranks, so the refill does not depend on the decomposition
             rho = 0.0_wp
@@ -556,7 +495,7 @@ contains
             do d = 1, 3, 2
               ! a neighbour inside the old disk is in its run
               if (i + ex(d) >= lo .and. i + ex(d) <= hi) cycle
-              if (.not. is_fluid(ps, dom, i + ex(d), jg)) cycle
+              if (.not. is_fluid(lk, ps, dom, i + ex(d), jg)) cycle
               rho = rho + sum(lattice_get_node(f, i + ex(d), j))
               nf = nf + 1
             end do
@@ -572,7 +511,7 @@ contains
         end do
       end do
     end do
-  end subroutine particles_refill
+  end procedure links_refill
 
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
   !! nodes for the links and their second fluid nodes.
@@ -586,11 +525,7 @@ contains
     j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
   end subroutine box
 
-  !> The particle index at each node of the slab (0 in the fluid), for output.
-  subroutine particles_solid_field(ps, dom, id)
-    type(particles_t), intent(in) :: ps
-    type(domain_t), intent(in) :: dom
-    real(wp), intent(out) :: id(:, :)
+  module procedure particles_solid_field
     integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
@@ -602,5 +537,5 @@ contains
         end do
       end do
     end do
-  end subroutine particles_solid_field
-end module dkt_particle_links
+  end procedure particles_solid_field
+end submodule dkt_links_bounce
