@@ -23,13 +23,14 @@ module dkt_config_restart
   !> The keys a restart may change without run.restart_changes, as 'group.key' or '&group'
   !! (every key of the group), blank-separated. None of them changes what a step computes:
   !! the run length and the wall-time, memory and guard limits decide when the run stops; the
-  !! output, checkpoint and progress keys what it writes; lbm.streaming gives the same results
-  !! to the bit.
+  !! output, checkpoint and progress keys what it writes; lbm.streaming and the balance keys
+  !! (where the slab borders lie) give the same results to the bit.
   character(len=*), parameter :: FREE_KEYS = 'run.t_end run.steps run.progress_every '// &
                                  'run.guard_every run.mach_limit '// &
                                  'run.particle_speed_limit run.checkpoint_every '// &
                                  'run.checkpoint_wall run.checkpoint_keep '// &
-                                 'run.wall_limit run.memory_limit '// &
+                                 'run.wall_limit run.memory_limit run.balance_every '// &
+                                 'run.balance_threshold '// &
                                  'run.restart_changes lbm.streaming &output'
 
   !> the most changes one message lists; the others are counted

@@ -209,6 +209,11 @@ module dkt_config_types
     real(wp) :: wall_limit = 0.0_wp       !! s of wall time after which the run checkpoints
                                           !! and stops; 0 = no limit
     real(wp) :: memory_limit = 0.0_wp     !! GiB a node may give the run; 0 = MemAvailable
+    !> time steps between checks of the slabs' balance (a scene with particles on more than one
+    !! rank); 0 = the rows stay split evenly
+    integer :: balance_every = 500
+    !> the costliest slab's modelled work over the mean above which the borders move
+    real(wp) :: balance_threshold = 1.1_wp
     !> the keys a --restart may change on purpose, 'group.key' separated by commas or blanks
     !! (dkt_config_restart); '' = none beyond the run length, output and checkpoint keys
     character(len=1024) :: restart_changes = ''
@@ -642,6 +647,13 @@ contains
     call add_real(reg, 'run', 'memory_limit', self%memory_limit, 'GiB', 'memory the ranks '// &
                   'of one node may use together; a run needing more is refused at start; '// &
                   '0 = MemAvailable of /proc/meminfo', ge=0.0_wp)
+    call add_integer(reg, 'run', 'balance_every', self%balance_every, '-', 'time steps '// &
+                     'between checks of the slabs'' balance with particles on more than one '// &
+                     'rank: the slab borders move so that each rank''s modelled work is equal; '// &
+                     '0 = the rows stay split evenly', ge=0)
+    call add_real(reg, 'run', 'balance_threshold', self%balance_threshold, '-', 'the '// &
+                  'costliest slab''s modelled work over the mean slab''s above which a check '// &
+                  'moves the borders', ge=1.0_wp, le=100.0_wp)
     call add_string(reg, 'run', 'restart_changes', self%restart_changes, 'keys a --restart '// &
                     'may change on purpose, as group.key separated by commas (e.g. '// &
                     '''pair.density, particles.gravity''); the changes are recorded in the run '// &

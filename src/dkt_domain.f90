@@ -7,14 +7,16 @@
 !> lattice run 2-4 times slower than 500 x 500). Only the three populations that cross a face
 !> travel in the halo exchange.
 !>
-!> When the rows do not split evenly, slabs differ by one row. nxp is therefore chosen for the
-!> tallest slab and is the same on every rank, and every exchange between slabs sends columns
-!> that both sides count from nx alone: a message never depends on the sender's slab height.
+!> The rows split evenly at the start (slabs differ by one row when they do not divide); a
+!> balanced split (domain_split) may move the borders during a run so that each rank's work is
+!> equal, and every rank knows every border (`starts`). nxp is chosen for the tallest slab and
+!> is the same on every rank, and every exchange between slabs sends columns that both sides
+!> count from nx alone: a message never depends on the sender's slab height.
 module dkt_domain
   use mpi_f08, only: MPI_Comm, MPI_Request, MPI_Comm_dup, MPI_Comm_rank, MPI_Comm_size, &
                      MPI_Comm_free, MPI_Irecv, MPI_Isend, MPI_Waitall, MPI_PROC_NULL, &
                      MPI_STATUSES_IGNORE, MPI_Sendrecv, MPI_STATUS_IGNORE, MPI_Alltoallv, &
-                     MPI_INTEGER2, MPI_Bcast
+                     MPI_INTEGER2, MPI_Bcast, MPI_Allgatherv
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
@@ -22,7 +24,8 @@ module dkt_domain
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
             domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS, domain_resize, domain_move_rows, &
-            domain_fill_new_rows
+            domain_fill_new_rows, domain_split, domain_rows_of, domain_owner_of_row, &
+            domain_gather_rows
 
   !> fewest rows a slab may hold: the open-end rule (E5) reads the row next to the end row
   integer, parameter :: MIN_SLAB_ROWS = 2
@@ -37,6 +40,9 @@ module dkt_domain
     integer :: nxp = 0               !! padded first extent of a lattice (>= nx + 2)
     integer :: y0 = 0                !! rows of the ranks below this one
     integer :: nyl = 0               !! rows of this slab
+    !> every rank's rows: rank r holds global rows starts(r)+1 .. starts(r+1) (starts(0) = 0,
+    !! starts(nranks) = ny)
+    integer, allocatable :: starts(:)
     integer :: below = MPI_PROC_NULL !! neighbour ranks (MPI_PROC_NULL at a closed or open end)
     integer :: above = MPI_PROC_NULL
     logical :: periodic_x = .false., periodic_y = .false.
@@ -98,10 +104,9 @@ contains
       err = trim(msg)
       return
     end if
-    call domain_rows_for(ny, dom%nranks, dom%rank, dom%y0, dom%nyl)
     ! one padded extent for all ranks (the tallest slab's), so a row means the same on both
     ! sides of every exchange
-    dom%nxp = padded_extent(nx, (ny + dom%nranks - 1)/dom%nranks)
+    call domain_split(dom, even_starts(ny, dom%nranks))
 
     if (dom%rank > 0) then
       dom%below = dom%rank - 1
@@ -126,15 +131,75 @@ contains
     type(domain_t), intent(inout) :: dom
     integer, intent(in) :: ny
     dom%ny = ny
-    call domain_rows_for(ny, dom%nranks, dom%rank, dom%y0, dom%nyl)
-    dom%nxp = padded_extent(dom%nx, (ny + dom%nranks - 1)/dom%nranks)
+    call domain_split(dom, even_starts(ny, dom%nranks))
   end subroutine domain_resize
+
+  !> The borders of the even split of ny rows over n ranks (domain_rows_for).
+  pure function even_starts(ny, n) result(starts)
+    integer, intent(in) :: ny, n
+    integer :: starts(0:n), r, nyl
+    do r = 0, n - 1
+      call domain_rows_for(ny, n, r, starts(r), nyl)
+    end do
+    starts(n) = ny
+  end function even_starts
+
+  !> The slabs of the same ranks split at the borders `starts` (rank r: rows starts(r)+1 ..
+  !! starts(r+1); starts(0) = 0, starts(nranks) = dom%ny, every slab at least one row): this
+  !! rank's rows and the padded extent of the tallest slab. The caller moves the rows
+  !! (domain_move_rows) from a copy of the domain as it was.
+  pure subroutine domain_split(dom, starts)
+    type(domain_t), intent(inout) :: dom
+    integer, intent(in) :: starts(0:)
+    dom%starts = starts
+    dom%y0 = starts(dom%rank)
+    dom%nyl = starts(dom%rank + 1) - starts(dom%rank)
+    dom%nxp = padded_extent(dom%nx, maxval(starts(1:dom%nranks) - starts(0:dom%nranks - 1)))
+  end subroutine domain_split
+
+  !> A value per row of every slab, in global row order on every rank: `mine` holds this
+  !! slab's rows 1..nyl, `every` (ny) receives them all.
+  subroutine domain_gather_rows(dom, mine, every)
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(in) :: mine(:)
+    real(wp), intent(out) :: every(:)
+    call MPI_Allgatherv(mine, dom%nyl, mpi_wp, every, &
+                        dom%starts(1:dom%nranks) - dom%starts(0:dom%nranks - 1), &
+                        dom%starts(0:dom%nranks - 1), mpi_wp, dom%comm)
+  end subroutine domain_gather_rows
+
+  !> The rows of rank r: global rows y0+1 .. y0+nyl.
+  pure subroutine domain_rows_of(dom, r, y0, nyl)
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: r
+    integer, intent(out) :: y0, nyl
+    y0 = dom%starts(r)
+    nyl = dom%starts(r + 1) - dom%starts(r)
+  end subroutine domain_rows_of
+
+  !> The rank that holds global row jg (1..ny): a bisection of the borders.
+  pure integer function domain_owner_of_row(dom, jg) result(r)
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: jg
+    integer :: lo, hi, mid
+    lo = 0
+    hi = dom%nranks - 1
+    do while (lo < hi)
+      mid = (lo + hi + 1)/2
+      if (dom%starts(mid) < jg) then
+        lo = mid
+      else
+        hi = mid - 1
+      end if
+    end do
+    r = lo
+  end function domain_owner_of_row
 
   !> Move the populations of rows 1..nyl (columns 1..nx) of `src`, split as `old` splits its
   !! rows, into `dst`, split as `new` splits its own (the same ranks and columns, new%ny >=
   !! old%ny): each global row goes to the rank that holds it in `new`, in one MPI_Alltoallv.
-  !! Both sides count every message from the two row counts alone (domain_rows_for), so the
-  !! sizes agree on uneven splits. Rows beyond old%ny are not touched: the caller fills them.
+  !! Both sides count every message from the two splits' borders, which every rank knows, so
+  !! the sizes agree on any split. Rows beyond old%ny are not touched: the caller fills them.
   !! Stored values travel as they are (a 4-byte value or a 16-bit code in the 8-byte buffer
   !! converts exactly).
   subroutine domain_move_rows(old, new, src, dst)
@@ -148,9 +213,9 @@ contains
     nx = old%nx
     do r = 0, old%nranks - 1
       ! to r: my old rows that r holds in the new split; from r: r's old rows that I hold
-      call domain_rows_for(new%ny, new%nranks, r, y0, nyl)
+      call domain_rows_of(new, r, y0, nyl)
       scount(r) = 9*nx*max(0, min(old%y0 + old%nyl, y0 + nyl) - max(old%y0, y0))
-      call domain_rows_for(old%ny, old%nranks, r, y0, nyl)
+      call domain_rows_of(old, r, y0, nyl)
       rcount(r) = 9*nx*max(0, min(new%y0 + new%nyl, y0 + nyl) - max(new%y0, y0))
     end do
     sdispl(0) = 0

@@ -20,7 +20,7 @@ module dkt_links
   public :: links_t, links_init, links_find, links_bounce, links_interior, &
             links_interior_after_move, links_inner_save, links_inner_write, links_refill, &
             links_reduce_forces, links_count, links_work, links_fluid_interior, links_table, &
-            links_inner_table, particles_solid_field
+            links_inner_table, particles_solid_field, links_row_work
 
   !> An interior link: node x_s of this slab inside particle k whose neighbour x_f = x_s - e_i
   !! is a lattice node outside k.
@@ -297,6 +297,29 @@ contains
     work = [real(lk%links_found, wp)/max(lk%searches, 1_i8), &
             real(lk%nodes_reset, wp)/max(lk%resets, 1_i8)]
   end function links_work
+
+  !> The work of each row j = 1..nyl of the slab `dom`: its boundary links (those of the last
+  !! search) and its nodes inside disks (the last placement's runs within columns 1..nx; a node
+  !! in two disks counts twice), for the cost of a row (dkt_balance).
+  pure subroutine links_row_work(lk, dom, links, nodes)
+    type(links_t), intent(in) :: lk
+    type(domain_t), intent(in) :: dom
+    integer, intent(out) :: links(dom%nyl), nodes(dom%nyl)
+    integer :: j, k, m
+    links = 0
+    nodes = 0
+    if (allocated(lk%lstart)) then
+      if (size(lk%lstart) == dom%nyl + 1) links = lk%lstart(2:) - lk%lstart(:dom%nyl)
+    end if
+    do k = 1, max(lk%nplaced, 0)
+      if (lk%placed_y0 /= dom%y0) exit
+      do m = 1, lk%span_nj(k)
+        j = lk%span_j0(k) + m - 1
+        if (j < 1 .or. j > dom%nyl) cycle
+        nodes(j) = nodes(j) + max(0, min(lk%span(2, m, k), dom%nx) - max(lk%span(1, m, k), 1) + 1)
+      end do
+    end do
+  end subroutine links_row_work
 
   !> Whether the interior nodes hold fluid (coupling.interior = 'fluid').
   pure logical function links_fluid_interior(lk)

@@ -19,7 +19,7 @@ module dkt_particles
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, pi, i8
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
-  use dkt_domain, only: domain_t, domain_rows_for
+  use dkt_domain, only: domain_t, domain_owner_of_row
   use dkt_cells, only: cells_t
   use dkt_collisions, only: collision_stable_substeps
   use dkt_errors, only: internal_error
@@ -153,22 +153,9 @@ contains
     real(wp), intent(in) :: y !! the centre's height
     type(domain_t), intent(in) :: dom
     integer, intent(in) :: keep
-    integer :: jg, y0, nyl
     r = keep
     if (.not. ieee_is_finite(y)) return
-    jg = int(min(max(y, 0.0_wp), real(dom%ny - 1, wp))) + 1
-    ! the even split of domain_rows_for: guess the rank, then step to the one that holds jg
-    r = min(dom%nranks - 1, (jg - 1)*dom%nranks/max(dom%ny, 1))
-    do
-      call domain_rows_for(dom%ny, dom%nranks, r, y0, nyl)
-      if (jg <= y0 .and. r > 0) then
-        r = r - 1
-      else if (jg > y0 + nyl .and. r < dom%nranks - 1) then
-        r = r + 1
-      else
-        exit
-      end if
-    end do
+    r = domain_owner_of_row(dom, int(min(max(y, 0.0_wp), real(dom%ny - 1, wp))) + 1)
   end function owner_of
 
   !> Whether this slab (rows y0 + 1 .. y0 + nyl, y in [y0, y0 + nyl)) holds a particle: its

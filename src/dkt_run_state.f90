@@ -50,6 +50,12 @@ module dkt_run_state
     !> the interior nodes of the disks have not been reset after the last step (nothing in a
     !! step reads them): simulation_settle resets them before anything reads the lattice
     logical :: interior_due = .false.
+    !> the fewest rows a slab may hold (the particles' reach: dkt_simulation's set-up), which a
+    !! balanced split keeps
+    integer :: min_rows = 2
+    !> a balance check found no split better than the present one: said once in the log
+    logical :: balance_noted = .false.
+    logical :: balance_checked = .false. !! a balance check was made in this run
   end type simulation_t
 
 end module dkt_run_state

@@ -11,7 +11,8 @@ module dkt_simulation
   use dkt_store, only: lattice_t, lattice_allocate, lattice_free, &
                        lattice_swap, lattice_allocated, lattice_precision
   use dkt_domain, only: domain_t, domain_init, domain_free, halo_start, halo_finish, &
-                        domain_resize, domain_move_rows, domain_fill_new_rows, MIN_SLAB_ROWS
+                        domain_resize, domain_move_rows, domain_fill_new_rows, MIN_SLAB_ROWS, &
+                        domain_split
   use dkt_boundary, only: boundary_init, fill_local_ghosts, fill_halo_ghosts, apply_open_ends
   use dkt_lubrication, only: lubrication_t
   use dkt_initial, only: initial_state
@@ -22,6 +23,7 @@ module dkt_simulation
                        links_interior_after_move, links_inner_save, links_inner_write, &
                        links_refill, links_reduce_forces, links_fluid_interior
   use dkt_particle_motion, only: particles_move
+  use dkt_balance, only: balance_plan, balance_line
   use dkt_choices, only: END_WALL, END_PERIODIC, END_VELOCITY, END_OUTFLOW, MOTION_FREE, &
                          MOTION_FIXED, MOTION_PRESCRIBED, &
                          BB_HALFWAY, BB_YU, BB_BFL, PROFILE_PARABOLIC, COLLISION_BGK, &
@@ -81,6 +83,7 @@ contains
       min_rows = max(min_rows, ceiling(lp%largest_diameter/lp%dx) + 4, &
                      particles_reach_rows(0.5_wp*lp%largest_diameter/lp%dx, cfg%collision%range))
     end if
+    sim%min_rows = min_rows
     call domain_init(sim%dom, comm, lp%nx, ny, periodic_x, periodic_y, min_rows, err)
     if (len(err) > 0) call fatal_all(trim(cfg%file)//': '//err)
     if (lp%ny_max > ny) then
@@ -342,6 +345,7 @@ contains
     call timer_start(PART_GUARDS)
     call survey_step(sim, n, failure)
     call timer_stop(PART_GUARDS)
+    if (len(failure) == 0) call balance_step(sim, n)
     call timer_start(PART_LINKS)
     ! (links of a particle outside the lattice do not exist: the loop stops instead)
     if (sim%particles_move .and. len(failure) == 0) call links_find(sim%links, sim%parts, sim%dom)
@@ -678,6 +682,53 @@ contains
   subroutine simulation_grow(sim, ny)
     type(simulation_t), intent(inout) :: sim
     integer, intent(in) :: ny
+    call move_slabs(sim, ny)
+  end subroutine simulation_grow
+
+  !> Every run.balance_every steps (particles on more than one rank): when the costliest slab's
+  !! modelled work exceeds run.balance_threshold times the mean, the slab borders move to the
+  !! split that balances it (dkt_balance), and the log says so. Called after the survey and
+  !! before the links are found, between the sweep and the swap; the interior nodes left for
+  !! later are reset first, on the slabs that hold them. Every split gives the same bits.
+  subroutine balance_step(sim, n)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: n
+    integer :: starts(0:sim%dom%nranks), old(0:sim%dom%nranks)
+    real(wp) :: before, after
+    if (sim%cfg%run%balance_every == 0 .or. sim%dom%nranks == 1 .or. .not. sim%particles_on) &
+      return
+    ! (the first step of a run or a resumption is checked too: a scene starts unbalanced)
+    if (mod(n, sim%cfg%run%balance_every) /= 0 .and. sim%balance_checked) return
+    sim%balance_checked = .true.
+    call timer_start(PART_PARTICLES)
+    call balance_plan(sim%links, sim%parts, sim%dom, sim%parts%substeps, sim%min_rows, &
+                      sim%cfg%run%balance_threshold, starts, before, after)
+    if (any(starts /= sim%dom%starts)) then
+      if (sim%interior_due) call links_interior_after_move(sim%links, sim%parts, sim%dom, &
+                                                           sim%f_next)
+      sim%interior_due = .false.
+      old = sim%dom%starts
+      call move_slabs(sim, sim%dom%ny, starts)
+      if (.not. sim%particles_move) call links_find(sim%links, sim%parts, sim%dom)
+      call log_line(balance_line(n, old, starts, before, after))
+    else if (before > sim%cfg%run%balance_threshold .and. .not. sim%balance_noted) then
+      sim%balance_noted = .true.
+      call log_line(balance_line(n, starts, starts, before, after)//'; no split into slabs '// &
+                    'of at least '//itoa(sim%min_rows)//' rows is better by 2 % (said once)')
+    end if
+    call timer_stop(PART_PARTICLES)
+  end subroutine balance_step
+
+  !> The slabs move to `ny` rows, split evenly, or split at the borders `starts` (the same
+  !! rows, a balanced split): the populations of every row move to the ranks that now hold
+  !! it (domain_move_rows), the rows a growth adds are filled (domain_fill_new_rows), the
+  !! lattices and the sweep's row buffers are sized anew and the particles are held anew. Called
+  !! between the sweep and the swap, where f_next holds the current populations (f as well in
+  !! place), or at a resume before the checkpoint's populations are read.
+  subroutine move_slabs(sim, ny, starts)
+    type(simulation_t), intent(inout) :: sim
+    integer, intent(in) :: ny
+    integer, intent(in), optional :: starts(0:)
     type(domain_t) :: old
     type(lattice_t) :: grown
     logical :: single, shifted, arith4, half
@@ -686,10 +737,14 @@ contains
     shifted = sim%f_next%shifted
     arith4 = sim%f_next%arith4
     half = sim%f_next%half
-    call domain_resize(sim%dom, ny)
+    if (present(starts)) then
+      call domain_split(sim%dom, starts)
+    else
+      call domain_resize(sim%dom, ny)
+    end if
     call lattice_allocate(grown, sim%dom%nxp, sim%dom%nyl, single, shifted, arith4, half)
     call domain_move_rows(old, sim%dom, sim%f_next, grown)
-    call domain_fill_new_rows(old, sim%dom, sim%f_next, grown)
+    if (sim%dom%ny > old%ny) call domain_fill_new_rows(old, sim%dom, sim%f_next, grown)
     call lattice_free(sim%f)
     if (sim%in_place) then
       sim%f = grown
@@ -700,7 +755,7 @@ contains
     sim%f_next = grown
     call sweep_init(sim%ws, sim%dom%nxp)
     if (sim%particles_on) call particles_resize_rows(sim%parts, old, sim%dom)
-  end subroutine simulation_grow
+  end subroutine move_slabs
 
   !> The gap of particles 1 and 2 after step n, for the kissing episodes (docs/model.md §6); every
   !! step, so that no episode falls between two samples of the series.

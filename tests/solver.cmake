@@ -30,6 +30,8 @@ dkt_add_pytest(NAME interior_density_ratio FILE tests/test_interior.py LABELS re
 dkt_add_pytest(NAME interior_deferred FILE tests/test_interior_deferred.py LABELS regression mpi
   PROCESSORS 3 TIMEOUT 600)
 dkt_add_fortran_test(NAME test_collisions SOURCES dkt_check.f90 test_collisions.f90 LABELS unit NO_MPIEXEC)
+# the balanced split of the rows against a search over every split (300 random cost profiles)
+dkt_add_fortran_test(NAME test_balance SOURCES dkt_check.f90 test_balance.f90 LABELS unit NO_MPIEXEC)
 # the contact partners of a step against every candidate, bit for bit, for disks within the
 # drift of their start (40 random crowds of 400 disks, pairs at the reach exactly)
 dkt_add_fortran_test(NAME test_collision_partners SOURCES dkt_check.f90 test_collision_partners.f90
@@ -64,3 +66,6 @@ dkt_add_pytest(NAME sweep_ranks FILE tests/test_sweep_ranks.py LABELS mpi long P
 # across every slab face, a restart on another rank count, the messages per step
 dkt_add_pytest(NAME particle_slabs FILE tests/test_particle_slabs.py LABELS mpi PROCESSORS 4
   TIMEOUT 900)
+# Slabs that follow the load: borders moved at the first step give the bits of one rank and of
+# fixed slabs on 2-4 ranks (TCP too), and a restart after a move on another rank count
+dkt_add_pytest(NAME balance FILE tests/test_balance.py LABELS mpi PROCESSORS 4 TIMEOUT 900)
