@@ -20,6 +20,7 @@ module dkt_domain
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, mpi_wp
   use dkt_store, only: lattice_t
+  use dkt_timers, only: wait_start, wait_stop
   implicit none
   private
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
@@ -163,9 +164,11 @@ contains
     type(domain_t), intent(in) :: dom
     real(wp), intent(in) :: mine(:)
     real(wp), intent(out) :: every(:)
+    call wait_start()
     call MPI_Allgatherv(mine, dom%nyl, mpi_wp, every, &
                         dom%starts(1:dom%nranks) - dom%starts(0:dom%nranks - 1), &
                         dom%starts(0:dom%nranks - 1), mpi_wp, dom%comm)
+    call wait_stop()
   end subroutine domain_gather_rows
 
   !> The rows of rank r: global rows y0+1 .. y0+nyl.
@@ -362,7 +365,9 @@ contains
     type(lattice_t), intent(inout) :: f
     integer :: k, nx
     nx = dom%nx
+    call wait_start()
     call MPI_Waitall(4, dom%req, MPI_STATUSES_IGNORE)
+    call wait_stop()
     if (dom%below /= MPI_PROC_NULL) then
       do k = 1, 3
         if (f%half) then

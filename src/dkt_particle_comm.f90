@@ -14,6 +14,7 @@ module dkt_particle_comm
   use dkt_kinds, only: wp, mpi_wp, i8
   use dkt_domain, only: domain_t
   use dkt_particle_state, only: fit_real
+  use dkt_timers, only: wait_start, wait_stop
   implicit none
   private
   public :: particle_comm_t, comm_init, comm_start, comm_put, comm_swap, comm_item, comm_id, &
@@ -102,7 +103,9 @@ contains
     if (c%below /= MPI_PROC_NULL .or. c%above /= MPI_PROC_NULL) then
       call MPI_Isend(c%sdn, c%unit*c%nd, mpi_wp, c%below, TAG_DOWN, c%comm, req(1))
       call MPI_Isend(c%sup, c%unit*c%nu, mpi_wp, c%above, TAG_UP, c%comm, req(2))
-      ! from above what it sent down, from below what it sent up
+      ! from above what it sent down, from below what it sent up (the time it takes them to
+      ! come is the wait for the neighbours)
+      call wait_start()
       call MPI_Probe(c%above, TAG_DOWN, c%comm, st)
       call MPI_Get_count(st, mpi_wp, n)
       c%mu = n/c%unit
@@ -114,6 +117,7 @@ contains
       call fit_real(c%rdn, n)
       call MPI_Recv(c%rdn, n, mpi_wp, c%below, TAG_UP, c%comm, MPI_STATUS_IGNORE)
       call MPI_Waitall(2, req, MPI_STATUSES_IGNORE)
+      call wait_stop()
     end if
     md = c%md
     mu = c%mu
@@ -146,7 +150,9 @@ contains
   subroutine comm_min(c, v)
     type(particle_comm_t), intent(inout) :: c
     real(wp), intent(inout) :: v(:)
+    call wait_start()
     call MPI_Allreduce(MPI_IN_PLACE, v, size(v), mpi_wp, MPI_MIN, c%comm)
+    call wait_stop()
     c%collective_calls = c%collective_calls + 1
   end subroutine comm_min
 
@@ -154,7 +160,9 @@ contains
   integer function comm_min_int(c, i) result(least)
     type(particle_comm_t), intent(inout) :: c
     integer, intent(in) :: i
+    call wait_start()
     call MPI_Allreduce(i, least, 1, MPI_INTEGER, MPI_MIN, c%comm)
+    call wait_stop()
     c%collective_calls = c%collective_calls + 1
   end function comm_min_int
 

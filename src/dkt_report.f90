@@ -15,7 +15,7 @@ module dkt_report
   use dkt_text, only: itoa, counted
   use dkt_version, only: dkt_version_string, dkt_git_revision
   use dkt_run_state, only: simulation_t
-  use dkt_timers, only: timer_seconds, timer_name, N_PARTS
+  use dkt_timers, only: timer_seconds, timer_name, N_PARTS, wait_seconds
   use dkt_particles, only: particles_messages, particles_work
   use dkt_links, only: links_count, links_work
   implicit none
@@ -238,7 +238,7 @@ contains
       int(sim%lp%nx, i8)*sim%dom%ny, ' cells x ', &
       counted(n - prog%first + 1, 'step'), ' in ', t, ' s on '
     call log_line(trim(line)//' '//counted(sim%dom%nranks, 'rank')//')')
-    call report_parts(sim, t)
+    call report_parts(sim, t, n - prog%first + 1)
     if (sim%particles_on) call report_messages(sim, n - prog%first + 1)
   end subroutine report_performance
 
@@ -282,11 +282,14 @@ contains
 
   !> The `time per part` line: each part's share of the loop's wall time t, the mean over the
   !! ranks (dkt_timers says what each part holds; `other` is the rest: the step counters, the
-  !! loop itself). A rank that waits for a neighbour's halo counts the wait in `flow`.
-  subroutine report_parts(sim, t)
+  !! loop itself). A rank that waits for a neighbour's halo counts the wait in `flow`. On more
+  !! than one rank, the `busy per step` line: each rank's loop less its waits for the others,
+  !! per step of the `steps` timed, the slowest, the fastest and the mean (the slabs' balance).
+  subroutine report_parts(sim, t, steps)
     type(simulation_t), intent(in) :: sim
     real(wp), intent(in) :: t
-    real(wp) :: share(N_PARTS + 1)
+    integer, intent(in) :: steps
+    real(wp) :: share(N_PARTS + 1), busy(3), mean
     character(len=:), allocatable :: line
     integer :: k
     ! each rank's shares of its own loop time, then their mean
@@ -300,7 +303,31 @@ contains
     end do
     call log_line(line//' other '//fixed1(share(N_PARTS + 1))//' % (mean over '// &
                   counted(sim%dom%nranks, 'rank')//')')
+    ! each rank's busy time: the loop's less its waits for the others (the slabs' balance)
+    busy(1) = max(t - wait_seconds(), 0.0_wp)
+    busy(2) = -busy(1)
+    call MPI_Allreduce(MPI_IN_PLACE, busy(1:2), 2, MPI_WP, MPI_MAX, sim%dom%comm)
+    busy(3) = max(t - wait_seconds(), 0.0_wp)
+    call MPI_Allreduce(MPI_IN_PLACE, busy(3), 1, MPI_WP, MPI_SUM, sim%dom%comm)
+    if (sim%dom%nranks > 1 .and. steps > 0) then
+      mean = busy(3)/sim%dom%nranks
+      call log_line('busy per step (the loop less the waits for other ranks): slowest rank '// &
+                    fixed3(1.0e3_wp*busy(1)/steps)//' ms, fastest '// &
+                    fixed3(-1.0e3_wp*busy(2)/steps)//' ms, mean '// &
+                    fixed3(1.0e3_wp*mean/steps)//' ms; slowest over mean '// &
+                    fixed2(busy(1)/max(mean, 1.0e-12_wp)))
+    end if
   end subroutine report_parts
+
+  !> x with three decimals.
+  function fixed3(x) result(s)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write (buf, '(f0.3)') x
+    s = trim(buf)
+    if (s(1:1) == '.') s = '0'//s
+  end function fixed3
 
   !> x with one decimal.
   function fixed1(x) result(s)

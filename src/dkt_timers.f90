@@ -2,13 +2,17 @@
 !! sweep, the boundary links, the particles, the window, guards, output, checkpoints), for the
 !! `time per part` line after the performance line (docs/performance.md). Each part is a
 !! start/stop pair around the calls that make it up; a pair costs two MPI_Wtime calls, far
-!! below a step's time, and reads nothing of the state, so it changes no result.
+!! below a step's time, and reads nothing of the state, so it changes no result. Within the
+!! parts, the time a rank waits for others (a halo that has not arrived, a neighbour's particle
+!! message, a reduction) is summed apart too (wait_start, wait_stop), so that a rank's busy time
+!! is the loop's less its waits: the balance of the slabs.
 module dkt_timers
   use dkt_kinds, only: wp
   use mpi_f08, only: MPI_Wtime
   implicit none
   private
   public :: timer_start, timer_stop, timer_reset, timer_seconds, timer_name, N_PARTS, &
+            wait_start, wait_stop, wait_seconds, &
             PART_FLOW, PART_LINKS, PART_PARTICLES, PART_WINDOW, PART_GUARDS, PART_OUTPUT, &
             PART_CHECKPOINTS
 
@@ -24,6 +28,7 @@ module dkt_timers
 
   real(wp), save :: total(N_PARTS) = 0.0_wp
   real(wp), save :: since(N_PARTS) = 0.0_wp
+  real(wp), save :: waited = 0.0_wp, wait_since = 0.0_wp
 
 contains
 
@@ -42,7 +47,23 @@ contains
   !> All sums to zero (at the start of a time loop).
   subroutine timer_reset()
     total = 0.0_wp
+    waited = 0.0_wp
   end subroutine timer_reset
+
+  !> Start timing a wait for other ranks.
+  subroutine wait_start()
+    wait_since = MPI_Wtime()
+  end subroutine wait_start
+
+  !> Add the time since wait_start to the waits.
+  subroutine wait_stop()
+    waited = waited + (MPI_Wtime() - wait_since)
+  end subroutine wait_stop
+
+  !> This rank's seconds waiting for other ranks since timer_reset.
+  real(wp) function wait_seconds()
+    wait_seconds = waited
+  end function wait_seconds
 
   !> This rank's seconds in each part since timer_reset.
   function timer_seconds() result(s)
