@@ -319,11 +319,12 @@ contains
     call timer_start(PART_FLOW)
     call apply_open_ends(sim%bc, sim%dom, sim%f_next, n)
     call timer_stop(PART_FLOW)
-    ! the interior nodes: reset now when the window may move the rows under them; otherwise
-    ! after the move, and only when something reads the lattice (simulation_settle)
+    ! the interior nodes: reset after the move, and only when something reads the lattice
+    ! (simulation_settle) or moves its rows (a window's shift or growth, a balance), on the slabs
+    ! and rows they are on now; fixed disks' at once
     sim%interior_due = .false.
     if (.not. links_fluid_interior(sim%links)) then
-      if (sim%particles_move .and. .not. sim%window_on) then
+      if (sim%particles_move) then
         sim%interior_due = .true.
       else
         call timer_start(PART_LINKS)
@@ -520,11 +521,26 @@ contains
     type(simulation_t), intent(inout) :: sim
     integer :: shift
     shift = sim%win%shift
-    call window_follow(sim%win, sim%dom, sim%parts, sim%f_next)
+    call window_follow(sim%win, sim%dom, sim%parts, sim%f_next, settle_rows)
     ! the particles moved up with the rows: some may now belong to, or reach, another slab
     if (sim%win%shift /= shift .and. sim%particles_move) &
       call particles_exchange(sim%parts, sim%dom)
+  contains
+    !> Before the rows move: the interior nodes left for later, on the rows they are on
+    subroutine settle_rows()
+      call settle_next(sim)
+    end subroutine settle_rows
   end subroutine follow_particles
+
+  !> The interior nodes left for later (simulation_settle) reset on f_next, where the populations
+  !! are between the sweep and the swap: before the rows move under the disks.
+  subroutine settle_next(sim)
+    type(simulation_t), intent(inout) :: sim
+    if (.not. sim%interior_due) return
+    ! (timed in the part that moves the rows)
+    call links_interior_after_move(sim%links, sim%parts, sim%dom, sim%f_next)
+    sim%interior_due = .false.
+  end subroutine settle_next
 
   !> What every rank must know of the slabs' own particles after a step, found in one reduction
   !! (particles_min; docs/design.md, "Particles across slabs"): the first particle past the
@@ -704,9 +720,6 @@ contains
     call balance_plan(sim%links, sim%parts, sim%dom, sim%parts%substeps, sim%min_rows, &
                       sim%cfg%run%balance_threshold, starts, before, after)
     if (any(starts /= sim%dom%starts)) then
-      if (sim%interior_due) call links_interior_after_move(sim%links, sim%parts, sim%dom, &
-                                                           sim%f_next)
-      sim%interior_due = .false.
       old = sim%dom%starts
       call move_slabs(sim, sim%dom%ny, starts)
       if (.not. sim%particles_move) call links_find(sim%links, sim%parts, sim%dom)
@@ -732,6 +745,7 @@ contains
     type(domain_t) :: old
     type(lattice_t) :: grown
     logical :: single, shifted, arith4, half
+    call settle_next(sim)
     old = sim%dom
     single = sim%f_next%single
     shifted = sim%f_next%shifted

@@ -24,6 +24,12 @@ module dkt_window
 
   integer, parameter :: TAG_SHIFT = 21
 
+  abstract interface
+    !> What the caller does once before the first row moves (window_follow)
+    subroutine before_shift_i()
+    end subroutine before_shift_i
+  end interface
+
   type :: window_t
     integer :: shift = 0            !! rows the window has moved down since t = 0
     real(wp) :: y_origin = 0.0_wp   !! cm, absolute y of the lower end at t = 0
@@ -57,12 +63,14 @@ contains
   !! The loop depends on the particle state, so it is bounded: a position that is not finite
   !! (a flow gone NaN) moves nothing, and the window moves at most ny rows in a call (a particle
   !! moves less than a spacing a step, run.particle_speed_limit); a particle left below the
-  !! lower end then stops the run (the caller's place check).
-  subroutine window_follow(win, dom, ps, f)
+  !! lower end then stops the run (the caller's place check). `before_shift`, when given, is
+  !! called once before the first row moves (and not at all in a step that moves none).
+  subroutine window_follow(win, dom, ps, f, before_shift)
     type(window_t), intent(inout) :: win
     type(domain_t), intent(in) :: dom
     type(particles_t), intent(inout) :: ps
     type(lattice_t), intent(inout) :: f
+    procedure(before_shift_i), optional :: before_shift
     real(wp) :: lowest
     logical :: finite
     integer :: k, rows
@@ -71,6 +79,7 @@ contains
       call particles_lowest_free(ps, dom, lowest, finite)
       if (.not. finite) return
       if (lowest >= win%below - 1.0_wp) exit
+      if (rows == 1 .and. present(before_shift)) call before_shift()
       call shift_rows(dom, f)
       do k = 1, ps%n
         ps%p%y(k) = ps%p%y(k) + 1.0_wp
