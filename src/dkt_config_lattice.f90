@@ -34,7 +34,7 @@ module dkt_config_lattice
     real(wp) :: nu_lb = 0.0_wp       !! lattice kinematic viscosity (tau - 1/2)/3
     real(wp) :: s(0:8) = 0.0_wp      !! rates in moment order rho,e,eps,jx,qx,jy,qy,pxx,pxy (E3)
     integer :: nx = 0                !! cells across the channel
-    integer :: ny = 0                !! cells along the channel at t = 0 (the domain holds the current count)
+    integer :: ny = 0                !! cells along the channel at t = 0 (now: the domain's ny)
     integer :: steps = 0             !! time steps of the run
     integer :: field_every = 0       !! steps between field outputs; 0 = at the end only
     integer :: series_every = 1      !! steps between particle samples (>= 1)

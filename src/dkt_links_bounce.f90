@@ -15,7 +15,7 @@
 !> and the density sums are point-wise physics, computed in 8 bytes. The work is that of the
 !> links and nodes of the disks a slab holds: nothing here loops over rows without links or over
 !> particles the slab does not hold.
-submodule (dkt_links) dkt_links_bounce
+submodule(dkt_links) dkt_links_bounce
   use iso_fortran_env, only: int16
   use dkt_kinds, only: wp, sp, i8, cs2
   use dkt_choices, only: BB_HALFWAY, BB_YU, BB_BFL
@@ -81,7 +81,10 @@ contains
     rho = sum(lattice_get_node(f, i, j))
   end function node_density
 
-  module procedure links_find
+  module subroutine links_find(lk, ps, dom)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
     integer :: k
     call search_links(lk, ps, dom)
     call link_fractions(lk%nlinks, lk%lp, lk%lx, lk%ly, lk%ld, dom%y0, ps%p%x, ps%p%y, ps%p%r, &
@@ -91,7 +94,7 @@ contains
     do k = 1, ps%n
       call inner_links_of(lk, ps, dom, k)
     end do
-  end procedure links_find
+  end subroutine links_find
 
   !> The interior links of disk k (coupling.interior = 'fluid'), in the order of its nodes (row,
   !! column): those of its nodes within 1.5 of the surface (a node deeper has every neighbour
@@ -153,7 +156,11 @@ contains
     end do
   end subroutine add_inner_links
 
-  module procedure links_inner_save
+  module subroutine links_inner_save(lk, ps, dom, f)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(in) :: f
     integer :: l, i, j, d, fi, fj
     real(wp) :: rho, xw, yw, uwx, uwy, wall
     do i = 1, dom%nx
@@ -181,18 +188,25 @@ contains
                         uwx, uwy, wall)
       lk%inner(l)%val = lattice_get(f, i, j, opp(d)) - wall
     end do
-  end procedure links_inner_save
+  end subroutine links_inner_save
 
-  module procedure links_inner_write
+  module subroutine links_inner_write(lk, f)
+    type(links_t), intent(in) :: lk
+    type(lattice_t), intent(inout) :: f
     integer :: l
     do l = 1, lk%ninner
       associate (a => lk%inner(l))
         call lattice_set(f, a%i - ex(a%d), a%j - ey(a%d), a%d, a%val)
       end associate
     end do
-  end procedure links_inner_write
+  end subroutine links_inner_write
 
-  module procedure links_bounce
+  module subroutine links_bounce(lk, ps, dom, f, j1, j2)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
+    integer, intent(in) :: j1, j2 !! rows of the fluid nodes whose links are bounced
     real(wp) :: no_d(1)
     real(sp) :: no_s(1)
     integer(int16) :: no_h(1)
@@ -228,7 +242,7 @@ contains
                         f%s, no_h, size(f%s, 1), size(f%s, 2), .true., f%shifted, .false., &
                         lk%lp, lk%lx, lk%ly, lk%ld, lk%lq, lk%lff, lk%lrow, lk%rows)
     end if
-  end procedure links_bounce
+  end subroutine links_bounce
 
   !> Where a link along e_i reads and writes, as offsets from population 0 of its fluid node
   !! x_f in a lattice f(0:nxp-1, 0:ny-1, 0:8) taken as one array (f(x, j, i) is element
@@ -391,16 +405,24 @@ contains
     end do
   end subroutine bounce_links
 
-  module procedure links_interior
+  module subroutine links_interior(lk, ps, dom, f)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
     call reset_disks(ps%p, ps%n, dom, f, lk%nodes_reset)
     lk%resets = lk%resets + 1
-  end procedure links_interior
+  end subroutine links_interior
 
-  module procedure links_interior_after_move
+  module subroutine links_interior_after_move(lk, ps, dom, f)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
     call place_for_nodes(lk, ps, dom)
     call reset_disks(ps%old, ps%nold, dom, f, lk%nodes_reset, lk%solid)
     lk%resets = lk%resets + 1
-  end procedure links_interior_after_move
+  end subroutine links_interior_after_move
 
   !> The equilibrium at density 1 and the rigid-body velocity of disk k of s at every node
   !! inside it, disk after disk (the later disk's where two overlap); with `solid` only at the
@@ -435,7 +457,11 @@ contains
     end do
   end subroutine reset_disks
 
-  module procedure links_refill
+  module subroutine links_refill(lk, ps, dom, f)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    type(lattice_t), intent(inout) :: f
     integer :: k, m, i, j, jg, d, nf, oj0, onj, lo, hi, nlo, nhi
     integer, allocatable :: found(:, :)
     real(wp) :: px, py, rho, ux, uy
@@ -511,7 +537,7 @@ contains
         end do
       end do
     end do
-  end procedure links_refill
+  end subroutine links_refill
 
   !> Rows j1..j2 and columns i1..i2 of this slab that a disk can touch, with a margin of two
   !! nodes for the links and their second fluid nodes.
@@ -525,7 +551,10 @@ contains
     j2 = min(dom%nyl, ceiling(p%y + p%r) + 2 - dom%y0)
   end subroutine box
 
-  module procedure particles_solid_field
+  module subroutine particles_solid_field(ps, dom, id)
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(out) :: id(:, :)
     integer :: k, i, j, i1, i2, j1, j2
     id = 0.0_wp
     do k = 1, ps%n
@@ -537,5 +566,5 @@ contains
         end do
       end do
     end do
-  end procedure particles_solid_field
+  end subroutine particles_solid_field
 end submodule dkt_links_bounce

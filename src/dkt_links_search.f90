@@ -15,7 +15,7 @@
 !> runs are those of the last search, with no node of the mask changed near it, has the links it
 !> had then, which are taken over instead of searched again (search_links). q is computed anew
 !> for every link each step (dkt_links_bounce), as the centres move.
-submodule (dkt_links) dkt_links_search
+submodule(dkt_links) dkt_links_search
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp
   use dkt_lattice, only: ex, ey
@@ -51,7 +51,10 @@ contains
     end if
   end function inside_at
 
-  module procedure place_for_nodes
+  module subroutine place_for_nodes(lk, ps, dom)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
     integer :: k, j, m, nrows
     logical :: near
     real(wp), allocatable :: tr(:, :)
@@ -130,7 +133,7 @@ contains
     lk%nplaced = ps%n
     lk%placed_y0 = dom%y0
     lk%placements = lk%placements + 1
-  end procedure place_for_nodes
+  end subroutine place_for_nodes
 
   !> The nodes i1..i2, j1..j2 of the mask (rows 0..nyl+1) that a disk at (x, y) of radius r can
   !! cover; none (i1 > i2) for a centre that is not finite (the box is clipped before it becomes
@@ -149,7 +152,12 @@ contains
     j2 = min(dom%nyl + 1, int(max(min(y + r - dom%y0, real(dom%nyl + 1, wp)), -1.0_wp) + 1.0_wp))
   end subroutine mask_box
 
-  module procedure disk_spans
+  pure module subroutine disk_spans(x, y, r, dom, j0, nj, sp, gj0, gnj, gsp)
+    real(wp), intent(in) :: x, y, r
+    type(domain_t), intent(in) :: dom
+    integer, intent(out) :: j0, nj
+    integer, intent(inout) :: sp(:, :)
+    integer, intent(in), optional :: gj0, gnj, gsp(:, :)
     !> runs to start from (of the same disk a little earlier): rows gj0.. (gnj rows)
     integer :: i1, i2, j2, m, ia, s, lo, hi, last
     real(wp) :: py, dy, h
@@ -223,7 +231,7 @@ contains
       integer, intent(in) :: c
       clip = min(max(c, 0), last)
     end function clip
-  end procedure disk_spans
+  end subroutine disk_spans
 
   !> The columns lo..hi of local row j inside disk k of the present placement (NO_LO, NO_HI
   !! for none, or a row beyond the disk's).
@@ -242,13 +250,21 @@ contains
     end if
   end subroutine span_of
 
-  module procedure old_spans_of
+  pure logical module function old_spans_of(lk, dom, m, x, y, r) result(kept)
+    type(links_t), intent(in) :: lk
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: m
+    real(wp), intent(in) :: x, y, r
     kept = m <= lk%nplaced_old .and. lk%placed_y0_old == dom%y0
     if (kept) kept = lk%placed_old(1, m) == x .and. lk%placed_old(2, m) == y .and. &
                      lk%placed_old(3, m) == r
-  end procedure old_spans_of
+  end function old_spans_of
 
-  module procedure is_fluid
+  pure logical module function is_fluid(lk, ps, dom, i, jg)
+    type(links_t), intent(in) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
+    integer, intent(in) :: i, jg
     is_fluid = i >= 1 .and. i <= dom%nx .and. (dom%periodic_y .or. (jg >= 1 .and. jg <= dom%ny))
     if (.not. is_fluid) return
     if (jg - dom%y0 >= 0 .and. jg - dom%y0 <= dom%nyl + 1) then
@@ -256,7 +272,7 @@ contains
     else
       is_fluid = fluid_far(lk, ps, i, jg)
     end if
-  end procedure is_fluid
+  end function is_fluid
 
   !> Whether the channel node (i, jg), beyond the mask's rows, lies outside every particle the
   !! slab holds: only the disks of the cells within rmax of the node are tested.
@@ -299,7 +315,10 @@ contains
     if (fluid) fluid = .not. lk%solid(i, j)
   end function mask_fluid
 
-  module procedure search_links
+  module subroutine search_links(lk, ps, dom)
+    type(links_t), intent(inout) :: lk
+    type(particles_t), intent(in) :: ps
+    type(domain_t), intent(in) :: dom
     integer :: k, m, n, ne, n0, i1, i2, j1, j2, since
     integer :: room, room_e !! places in the arrays of the links, of the entries
     integer, allocatable :: was(:) !! the disk of the last search that disk k is, or 0
@@ -372,7 +391,7 @@ contains
     lk%links_found = lk%links_found + n
     call row_entries(lk, dom%nyl)
     call keep_runs(lk, ps, dom)
-  end procedure search_links
+  end subroutine search_links
 
   !> The disks of the last search that the present ones are (was, by id), those whose runs are
   !! the same (same), and the blocks of nodes where the mask changed since (dirty): see

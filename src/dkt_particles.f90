@@ -61,9 +61,9 @@ module dkt_particles
     !! lubrication cut-off when that is larger
     real(wp) :: partner_range = 1
     integer :: substeps = 1
-    integer :: substeps_needed = 1      !! particles_stable_substeps, over every particle
+    integer, private :: substeps_needed = 1 !! particles_stable_substeps, over every particle
     real(wp) :: rmax = 0                !! the largest radius
-    real(wp) :: marg = 3                !! the reach beyond a disk within which a slab holds it
+    real(wp), private :: marg = 3       !! the reach beyond a disk within which a slab holds it
     !> the centres at the start of the step in cells of side 2 rmax + range, for the contacts
     type(cells_t) :: cells
     ! the state before the move (refill), and the merge of the exchange, grown as needed
