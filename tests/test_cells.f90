@@ -25,7 +25,7 @@ program test_cells
   character(len=:), allocatable :: err
   real(wp) :: px(n), py(n), pr(n), zero(n)
   integer, allocatable :: want(:, :), want_inner(:, :), got(:, :), got_inner(:, :)
-  integer :: k, l
+  integer :: k
 
   call MPI_Init()
   ! the same crowd on every rank: a fixed scattered sequence, not each process's random numbers
