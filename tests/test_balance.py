@@ -1,9 +1,11 @@
 """Slabs that follow the load (docs/design.md, "Balanced slabs"): a box whose disks all start in
 its upper part moves its slab borders at the first step, says so in the log, and gives the bits
 of the 1-rank run and of fixed slabs on 2, 3 and 4 ranks (uneven rows), also without shared
-memory; a run resumed on another rank count from a checkpoint written after the borders moved,
-with balancing on or off, gives the bits of the uninterrupted run; the balance settings out of
-range are refused with the key, the value and the allowed range. Each test's name says what it
+memory; the rank matrix's window scene (shifts, uneven rows) and closed box in 4-byte arithmetic
+with the borders checked every 7 steps and moved at any imbalance give the 1-rank bits; a run
+resumed on another rank count from a checkpoint written after the borders moved, with
+balancing on or off, gives the bits of the uninterrupted run; the balance settings out of range
+are refused with the key, the value and the allowed range. Each test's name says what it
 proves."""
 
 from __future__ import annotations
@@ -16,6 +18,9 @@ import pytest
 
 from dkt_run import EXE
 from test_particle_slabs import STEPS, box_scene, datasets, launch
+from test_rank_matrix import CASES
+
+ROOT = Path(__file__).resolve().parents[1]
 
 # a check at the first step and every 40 steps after; a small threshold so that the borders
 # also move again while the disks settle
@@ -58,6 +63,26 @@ def test_balanced_slabs_give_the_bits_of_one_rank_and_of_fixed_slabs(
     assert not same_bits(one_rank, tmp_path / "balanced")
     launch(scene, ranks, tmp_path / "fixed", FIXED, tcp=tcp)
     assert not same_bits(tmp_path / "fixed", tmp_path / "balanced")
+
+
+@pytest.mark.parametrize("case,ranks", [("window_uneven_rows_3", 3),
+                                        ("closed_box_crossing_single_arith", 4)])
+def test_borders_moved_every_few_steps_give_the_bits_of_one_rank(
+    tmp_path: Path, case: str, ranks: int
+) -> None:
+    spec = CASES[case]
+    scene = ROOT / "input" / spec["nml"]
+    sets = [arg for key in spec["sets"] for arg in ("--set", key)]
+    launch(scene, 1, tmp_path / "one", sets)
+    log = launch(scene, ranks, tmp_path / "moved",
+                 [*sets, "--set", "run.balance_every=7", "--set", "run.balance_threshold=1.0"])
+    assert len(MOVED.findall(log)) >= 2, log
+    one = {p.name: p for p in (tmp_path / "one").glob("*.h5")}
+    moved = {p.name: p for p in (tmp_path / "moved").glob("*.h5")}
+    assert one.keys() == moved.keys() and len(one) == 1
+    want, got = datasets(next(iter(one.values()))), datasets(next(iter(moved.values())))
+    assert want.keys() == got.keys()
+    assert not [name for name in want if want[name] != got[name]]
 
 
 @pytest.mark.parametrize("second,setting", [(2, FIXED), (4, BALANCE)])
