@@ -9,7 +9,8 @@
 !> on the borders (every split gives the same bits), only the speed does.
 module dkt_balance
   use dkt_kinds, only: wp
-  use dkt_domain, only: domain_t, domain_gather_rows
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use dkt_domain, only: domain_t, domain_gather_rows, domain_row_at
   use dkt_particles, only: particles_t
   use dkt_links, only: links_t, links_row_work
   implicit none
@@ -44,8 +45,8 @@ contains
     call links_row_work(lk, dom, links, nodes)
     disks = 0
     do k = 1, ps%n
-      if (ps%home(k) /= dom%rank) cycle
-      j = int(min(max(ps%p%y(k), 0.0_wp), real(dom%ny - 1, wp))) + 1 - dom%y0
+      if (ps%home(k) /= dom%rank .or. .not. ieee_is_finite(ps%p%y(k))) cycle
+      j = domain_row_at(dom, ps%p%y(k)) - dom%y0
       if (j >= 1 .and. j <= dom%nyl) disks(j) = disks(j) + 1
     end do
     call domain_gather_rows(dom, balance_row_costs(dom%nx, links, nodes, disks, substeps), every)

@@ -26,7 +26,7 @@ module dkt_domain
   public :: domain_t, domain_init, domain_free, domain_rows_for, halo_start, halo_finish, &
             domain_edge_rows, max_ranks_for, MIN_SLAB_ROWS, domain_resize, domain_move_rows, &
             domain_fill_new_rows, domain_split, domain_rows_of, domain_owner_of_row, &
-            domain_gather_rows
+            domain_gather_rows, domain_row_at
 
   !> fewest rows a slab may hold: the open-end rule (E5) reads the row next to the end row
   integer, parameter :: MIN_SLAB_ROWS = 2
@@ -179,6 +179,14 @@ contains
     y0 = dom%starts(r)
     nyl = dom%starts(r + 1) - dom%starts(r)
   end subroutine domain_rows_of
+
+  !> The global row (1..ny) that holds the finite height y (lattice units; row j covers
+  !! [j - 1, j)), the channel's first or last row for a height beyond it.
+  pure integer function domain_row_at(dom, y) result(jg)
+    type(domain_t), intent(in) :: dom
+    real(wp), intent(in) :: y
+    jg = int(min(max(y, 0.0_wp), real(dom%ny - 1, wp))) + 1
+  end function domain_row_at
 
   !> The rank that holds global row jg (1..ny): a bisection of the borders.
   pure integer function domain_owner_of_row(dom, jg) result(r)

@@ -19,7 +19,7 @@ module dkt_particles
   use ieee_arithmetic, only: ieee_is_finite
   use dkt_kinds, only: wp, pi, i8
   use dkt_choices, only: MOTION_FREE, MOTION_FIXED, MOTION_PRESCRIBED
-  use dkt_domain, only: domain_t, domain_owner_of_row
+  use dkt_domain, only: domain_t, domain_owner_of_row, domain_row_at
   use dkt_cells, only: cells_t
   use dkt_collisions, only: collision_stable_substeps
   use dkt_errors, only: internal_error
@@ -155,7 +155,7 @@ contains
     integer, intent(in) :: keep
     r = keep
     if (.not. ieee_is_finite(y)) return
-    r = domain_owner_of_row(dom, int(min(max(y, 0.0_wp), real(dom%ny - 1, wp))) + 1)
+    r = domain_owner_of_row(dom, domain_row_at(dom, y))
   end function owner_of
 
   !> Whether this slab (rows y0 + 1 .. y0 + nyl, y in [y0, y0 + nyl)) holds a particle: its

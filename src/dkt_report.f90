@@ -289,7 +289,7 @@ contains
     type(simulation_t), intent(in) :: sim
     real(wp), intent(in) :: t
     integer, intent(in) :: steps
-    real(wp) :: share(N_PARTS + 1), busy(3), mean
+    real(wp) :: share(N_PARTS + 1), busy(2), mine, mean
     character(len=:), allocatable :: line
     integer :: k
     ! each rank's shares of its own loop time, then their mean
@@ -299,44 +299,37 @@ contains
     share = share/sim%dom%nranks
     line = 'time per part:'
     do k = 1, N_PARTS
-      line = line//' '//timer_name(k)//' '//fixed1(share(k))//' %,'
+      line = line//' '//timer_name(k)//' '//fixed(share(k), 1)//' %,'
     end do
-    call log_line(line//' other '//fixed1(share(N_PARTS + 1))//' % (mean over '// &
+    call log_line(line//' other '//fixed(share(N_PARTS + 1), 1)//' % (mean over '// &
                   counted(sim%dom%nranks, 'rank')//')')
-    ! each rank's busy time: the loop's less its waits for the others (the slabs' balance)
-    busy(1) = max(t - wait_seconds(), 0.0_wp)
-    busy(2) = -busy(1)
-    call MPI_Allreduce(MPI_IN_PLACE, busy(1:2), 2, MPI_WP, MPI_MAX, sim%dom%comm)
-    busy(3) = max(t - wait_seconds(), 0.0_wp)
-    call MPI_Allreduce(MPI_IN_PLACE, busy(3), 1, MPI_WP, MPI_SUM, sim%dom%comm)
+    ! each rank's busy time: the loop's less its waits for the others (the slabs' balance);
+    ! the largest and the smallest (as the largest of its negative), then the sum
     if (sim%dom%nranks > 1 .and. steps > 0) then
-      mean = busy(3)/sim%dom%nranks
+      mine = max(t - wait_seconds(), 0.0_wp)
+      busy = [mine, -mine]
+      call MPI_Allreduce(MPI_IN_PLACE, busy, 2, MPI_WP, MPI_MAX, sim%dom%comm)
+      call MPI_Allreduce(mine, mean, 1, MPI_WP, MPI_SUM, sim%dom%comm)
+      mean = mean/sim%dom%nranks
       call log_line('busy per step (the loop less the waits for other ranks): slowest rank '// &
-                    fixed3(1.0e3_wp*busy(1)/steps)//' ms, fastest '// &
-                    fixed3(-1.0e3_wp*busy(2)/steps)//' ms, mean '// &
-                    fixed3(1.0e3_wp*mean/steps)//' ms; slowest over mean '// &
-                    fixed2(busy(1)/max(mean, 1.0e-12_wp)))
+                    fixed(1.0e3_wp*busy(1)/steps, 3)//' ms, fastest '// &
+                    fixed(-1.0e3_wp*busy(2)/steps, 3)//' ms, mean '// &
+                    fixed(1.0e3_wp*mean/steps, 3)//' ms; slowest over mean '// &
+                    fixed(busy(1)/max(mean, 1.0e-12_wp), 2))
     end if
   end subroutine report_parts
 
-  !> x with three decimals.
-  function fixed3(x) result(s)
+  !> x with `digits` decimals (a leading 0 before the point).
+  function fixed(x, digits) result(s)
     real(wp), intent(in) :: x
+    integer, intent(in) :: digits
     character(len=:), allocatable :: s
     character(len=32) :: buf
-    write (buf, '(f0.3)') x
+    character(len=8) :: form
+    write (form, '(a,i0,a)') '(f0.', digits, ')'
+    write (buf, form) x
     s = trim(buf)
     if (s(1:1) == '.') s = '0'//s
-  end function fixed3
-
-  !> x with one decimal.
-  function fixed1(x) result(s)
-    real(wp), intent(in) :: x
-    character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write (buf, '(f0.1)') x
-    s = trim(buf)
-    if (s(1:1) == '.') s = '0'//s
-  end function fixed1
+  end function fixed
 
 end module dkt_report
